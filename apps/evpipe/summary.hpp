@@ -1,0 +1,29 @@
+#pragma once
+// The end-of-run summary evpipe prints (text for people, JSON for scripts and tests).
+
+#include <cstdint>
+#include <string>
+
+#include "evpipe/core/source.hpp"
+#include "evpipe/core/stream_stats.hpp"
+
+namespace evpipe::app {
+
+struct RunSummary {
+  SourceInfo info;
+  SourceStats source;
+  const StreamStats* stream = nullptr;
+  std::uint64_t windows = 0;          ///< windows passed through the (pass-through) stage
+  std::uint64_t window_events = 0;    ///< events counted in those windows
+  std::int64_t window_us = 0;
+  std::int64_t hop_us = 0;
+  double wall_s = 0;
+  bool interrupted = false;
+  std::string error;                  ///< non-empty when the run stopped on an error
+  bool out_of_order_dropped = true;
+};
+
+std::string format_text(const RunSummary& s);
+std::string format_json(const RunSummary& s);
+
+}  // namespace evpipe::app

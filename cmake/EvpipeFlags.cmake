@@ -1,0 +1,35 @@
+# One function applies the project's warning, architecture and sanitizer flags to every target.
+function(evpipe_set_flags target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow)
+  if(EVPIPE_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+endfunction()
+
+# Architecture: portable by default (the service runs on industrial PCs that are not the build machine).
+if(CMAKE_SYSTEM_PROCESSOR MATCHES "x86_64|AMD64")
+  if(EVPIPE_NATIVE)
+    add_compile_options(-march=native)
+  else()
+    add_compile_options(-march=x86-64-v2)
+  endif()
+endif()
+
+if(EVPIPE_SANITIZE)
+  add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+  add_link_options(-fsanitize=address,undefined)
+endif()
+if(EVPIPE_TSAN)
+  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=thread)
+endif()
+
+# Declares an evpipe library: libs/<name>/{include,src}, target evpipe_<name>, alias evpipe::<name>.
+function(evpipe_add_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  add_library(evpipe_${name} ${ARG_SOURCES})
+  add_library(evpipe::${name} ALIAS evpipe_${name})
+  target_include_directories(evpipe_${name} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
+  target_link_libraries(evpipe_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  evpipe_set_flags(evpipe_${name})
+endfunction()

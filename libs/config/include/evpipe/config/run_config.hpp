@@ -1,0 +1,81 @@
+#pragma once
+// The run configuration: one typed struct per section, loaded from YAML (config/evpipe.yaml documents
+// every key), overridden by the command line, validated, and printed at start.
+//
+// Unknown keys are errors: a misspelt key in a production config must not silently fall back to a default.
+// Errors throw ConfigError naming the file and the key path (e.g. "evpipe.yaml: device.ba_filter_time_us:
+// must be in [0, 1023750]").
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace evpipe::config {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct LogConfig {
+  std::string level = "info";  ///< trace | debug | info | warn | error | critical | off
+};
+
+struct SourceConfig {
+  std::string replay;                 ///< recording to replay; empty = live camera
+  std::optional<double> speed = 1.0;  ///< replay pace factor; nullopt = "max" (as fast as possible)
+  std::int64_t batch_events = 8192;   ///< events per batch read from a file
+  bool drop_out_of_order = true;      ///< drop events whose t_us goes backwards (else keep and count)
+  std::int64_t discontinuity_us = 1'000'000;  ///< backward jump treated as a clock reset
+  int default_width = 346;            ///< sensor size when the file does not state it
+  int default_height = 260;
+  bool aedat2_flip_y = true;          ///< jAER bottom-left origin → top-left
+  bool aedat2_flip_x = false;
+};
+
+struct DeviceConfig {
+  std::string serial;                     ///< open this serial number; empty = first DAVIS found
+  bool ba_filter = true;                  ///< FPGA background-activity filter
+  std::int64_t ba_filter_time_us = 2000;  ///< its support time (250 µs steps)
+  bool refractory = false;                ///< FPGA refractory-period filter
+  std::int64_t refractory_time_us = 250;
+  std::int64_t container_interval_us = 5000;  ///< libcaer packet container interval
+  std::int64_t reconnect_interval_ms = 1000;  ///< retry period after an unplug
+};
+
+struct WindowConfig {
+  std::int64_t length_us = 30'000;  ///< the paper's 30 ms windows
+  std::int64_t hop_us = 30'000;     ///< hop between window starts (= length: fixed windows)
+};
+
+struct PoseFilesConfig {
+  std::string camera;     ///< camera calibration YAML
+  std::string model;      ///< line model YAML / DXF
+  std::string prior;      ///< initial pose prior YAML
+  std::string poses_out;  ///< trajectory CSV of published poses
+};
+
+struct RunConfig {
+  LogConfig log;
+  SourceConfig source;
+  DeviceConfig device;
+  WindowConfig window;
+  PoseFilesConfig pose;
+
+  /// Checks ranges and consistency; throws ConfigError naming the key.
+  void validate() const;
+  /// YAML text of the effective configuration (logged at start; loadable again).
+  [[nodiscard]] std::string to_yaml() const;
+};
+
+/// Loads `path` over the defaults. Throws ConfigError (file, key, reason) on unreadable files, syntax errors,
+/// unknown keys, and values of the wrong type or out of range.
+RunConfig load_config(const std::string& path);
+/// Parses YAML text (for tests); `name` is used in messages.
+RunConfig parse_config(const std::string& yaml_text, const std::string& name = "<config>");
+
+/// Parses a replay speed: "max" → nullopt, else a positive number. Throws ConfigError.
+std::optional<double> parse_speed(const std::string& text, const std::string& where);
+
+}  // namespace evpipe::config

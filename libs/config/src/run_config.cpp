@@ -1,0 +1,213 @@
+#include "evpipe/config/run_config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fmt/format.h>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <sstream>
+
+namespace evpipe::config {
+
+namespace {
+
+[[noreturn]] void fail(const std::string& file, const std::string& key, const std::string& why) {
+  throw ConfigError(fmt::format("{}: {}: {}", file, key, why));
+}
+
+template <typename T>
+T scalar(const YAML::Node& n, const std::string& file, const std::string& key, const char* type_name) {
+  if (!n.IsScalar()) fail(file, key, fmt::format("expected {}, got a {}", type_name, n.IsMap() ? "map" : "list"));
+  try {
+    return n.as<T>();
+  } catch (const YAML::Exception&) {
+    fail(file, key, fmt::format("expected {}, got '{}'", type_name, n.Scalar()));
+  }
+}
+
+using Setter = std::function<void(const YAML::Node&, const std::string& key)>;
+
+/// Applies a map of known keys to one YAML section; unknown keys are errors.
+void apply_section(const YAML::Node& section, const std::string& file, const std::string& prefix,
+                   const std::map<std::string, Setter>& keys) {
+  if (!section) return;
+  if (section.IsNull()) return;
+  if (!section.IsMap()) fail(file, prefix, "expected a map of keys");
+  for (const auto& kv : section) {
+    const auto name = kv.first.as<std::string>();
+    const std::string key = prefix + "." + name;
+    auto it = keys.find(name);
+    if (it == keys.end()) {
+      std::string known;
+      for (const auto& [k, _] : keys) known += (known.empty() ? "" : ", ") + k;
+      fail(file, key, fmt::format("unknown key (known keys in '{}': {})", prefix, known));
+    }
+    it->second(kv.second, key);
+  }
+}
+
+}  // namespace
+
+std::optional<double> parse_speed(const std::string& text, const std::string& where) {
+  if (text == "max") return std::nullopt;
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(v) || v <= 0) throw std::invalid_argument(text);
+    return v;
+  } catch (const std::exception&) {
+    throw ConfigError(fmt::format("{}: speed must be a positive number or 'max', got '{}'", where, text));
+  }
+}
+
+RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::ParserException& e) {
+    throw ConfigError(fmt::format("{}: line {}, column {}: YAML syntax error: {}", name, e.mark.line + 1,
+                                  e.mark.column + 1, e.msg));
+  }
+  RunConfig c;
+  if (!root || root.IsNull()) return c;
+  if (!root.IsMap()) fail(name, "<top level>", "expected a map of sections");
+
+  auto str = [&](std::string& dst) {
+    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<std::string>(n, name, k, "a string"); };
+  };
+  auto i64 = [&](std::int64_t& dst) {
+    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<std::int64_t>(n, name, k, "an integer"); };
+  };
+  auto integer = [&](int& dst) {
+    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<int>(n, name, k, "an integer"); };
+  };
+  auto boolean = [&](bool& dst) {
+    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<bool>(n, name, k, "true or false"); };
+  };
+
+  for (const auto& kv : root) {
+    const auto section = kv.first.as<std::string>();
+    const auto& node = kv.second;
+    if (section == "log") {
+      apply_section(node, name, section, {{"level", str(c.log.level)}});
+    } else if (section == "source") {
+      apply_section(node, name, section,
+                    {{"replay", str(c.source.replay)},
+                     {"speed",
+                      [&](const YAML::Node& n, const std::string& k) {
+                        c.source.speed = parse_speed(scalar<std::string>(n, name, k, "a number or 'max'"),
+                                                     name + ": " + k);
+                      }},
+                     {"batch_events", i64(c.source.batch_events)},
+                     {"drop_out_of_order", boolean(c.source.drop_out_of_order)},
+                     {"discontinuity_us", i64(c.source.discontinuity_us)},
+                     {"default_width", integer(c.source.default_width)},
+                     {"default_height", integer(c.source.default_height)},
+                     {"aedat2_flip_y", boolean(c.source.aedat2_flip_y)},
+                     {"aedat2_flip_x", boolean(c.source.aedat2_flip_x)}});
+    } else if (section == "device") {
+      apply_section(node, name, section,
+                    {{"serial", str(c.device.serial)},
+                     {"ba_filter", boolean(c.device.ba_filter)},
+                     {"ba_filter_time_us", i64(c.device.ba_filter_time_us)},
+                     {"refractory", boolean(c.device.refractory)},
+                     {"refractory_time_us", i64(c.device.refractory_time_us)},
+                     {"container_interval_us", i64(c.device.container_interval_us)},
+                     {"reconnect_interval_ms", i64(c.device.reconnect_interval_ms)}});
+    } else if (section == "window") {
+      apply_section(node, name, section,
+                    {{"length_us", i64(c.window.length_us)}, {"hop_us", i64(c.window.hop_us)}});
+    } else if (section == "pose") {
+      apply_section(node, name, section,
+                    {{"camera", str(c.pose.camera)},
+                     {"model", str(c.pose.model)},
+                     {"prior", str(c.pose.prior)},
+                     {"poses_out", str(c.pose.poses_out)}});
+    } else {
+      fail(name, section, "unknown section (known: log, source, device, window, pose)");
+    }
+  }
+  try {
+    c.validate();
+  } catch (const ConfigError& e) {
+    throw ConfigError(fmt::format("{}: {}", name, e.what()));
+  }
+  return c;
+}
+
+RunConfig load_config(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(fmt::format("{}: cannot open the configuration file", path));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_config(ss.str(), path);
+}
+
+void RunConfig::validate() const {
+  auto check = [](bool ok, const char* key, const std::string& why) {
+    if (!ok) throw ConfigError(fmt::format("{}: {}", key, why));
+  };
+  static const char* levels[] = {"trace", "debug", "info", "warn", "error", "critical", "off"};
+  bool level_ok = false;
+  for (const char* l : levels) level_ok = level_ok || log.level == l;
+  check(level_ok, "log.level", fmt::format("'{}' is not one of trace, debug, info, warn, error, critical, off", log.level));
+  check(!source.speed || *source.speed > 0, "source.speed", "must be > 0 or 'max'");
+  check(source.batch_events >= 1 && source.batch_events <= 10'000'000, "source.batch_events",
+        fmt::format("must be in [1, 10000000], got {}", source.batch_events));
+  check(source.discontinuity_us > 0, "source.discontinuity_us", "must be > 0");
+  check(source.default_width > 0 && source.default_width <= 32768, "source.default_width", "must be in [1, 32768]");
+  check(source.default_height > 0 && source.default_height <= 32768, "source.default_height", "must be in [1, 32768]");
+  check(device.ba_filter_time_us >= 0 && device.ba_filter_time_us <= 4095 * 250, "device.ba_filter_time_us",
+        fmt::format("must be in [0, {}] (the FPGA counts 250 us steps), got {}", 4095 * 250, device.ba_filter_time_us));
+  check(device.refractory_time_us >= 0 && device.refractory_time_us <= 4095 * 250, "device.refractory_time_us",
+        fmt::format("must be in [0, {}], got {}", 4095 * 250, device.refractory_time_us));
+  check(device.container_interval_us >= 100 && device.container_interval_us <= 1'000'000,
+        "device.container_interval_us", "must be in [100, 1000000]");
+  check(device.reconnect_interval_ms >= 10, "device.reconnect_interval_ms", "must be >= 10");
+  check(window.length_us > 0, "window.length_us", fmt::format("must be > 0, got {}", window.length_us));
+  check(window.hop_us > 0 && window.hop_us <= window.length_us, "window.hop_us",
+        fmt::format("must be in [1, window.length_us = {}], got {}", window.length_us, window.hop_us));
+}
+
+std::string RunConfig::to_yaml() const {
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  out << YAML::Key << "log" << YAML::Value << YAML::BeginMap << YAML::Key << "level" << YAML::Value << log.level
+      << YAML::EndMap;
+  out << YAML::Key << "source" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "replay" << YAML::Value << source.replay;
+  out << YAML::Key << "speed" << YAML::Value << (source.speed ? fmt::format("{}", *source.speed) : "max");
+  out << YAML::Key << "batch_events" << YAML::Value << source.batch_events;
+  out << YAML::Key << "drop_out_of_order" << YAML::Value << source.drop_out_of_order;
+  out << YAML::Key << "discontinuity_us" << YAML::Value << source.discontinuity_us;
+  out << YAML::Key << "default_width" << YAML::Value << source.default_width;
+  out << YAML::Key << "default_height" << YAML::Value << source.default_height;
+  out << YAML::Key << "aedat2_flip_y" << YAML::Value << source.aedat2_flip_y;
+  out << YAML::Key << "aedat2_flip_x" << YAML::Value << source.aedat2_flip_x;
+  out << YAML::EndMap;
+  out << YAML::Key << "device" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "serial" << YAML::Value << device.serial;
+  out << YAML::Key << "ba_filter" << YAML::Value << device.ba_filter;
+  out << YAML::Key << "ba_filter_time_us" << YAML::Value << device.ba_filter_time_us;
+  out << YAML::Key << "refractory" << YAML::Value << device.refractory;
+  out << YAML::Key << "refractory_time_us" << YAML::Value << device.refractory_time_us;
+  out << YAML::Key << "container_interval_us" << YAML::Value << device.container_interval_us;
+  out << YAML::Key << "reconnect_interval_ms" << YAML::Value << device.reconnect_interval_ms;
+  out << YAML::EndMap;
+  out << YAML::Key << "window" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "length_us" << YAML::Value << window.length_us;
+  out << YAML::Key << "hop_us" << YAML::Value << window.hop_us;
+  out << YAML::EndMap;
+  out << YAML::Key << "pose" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "camera" << YAML::Value << pose.camera;
+  out << YAML::Key << "model" << YAML::Value << pose.model;
+  out << YAML::Key << "prior" << YAML::Value << pose.prior;
+  out << YAML::Key << "poses_out" << YAML::Value << pose.poses_out;
+  out << YAML::EndMap;
+  out << YAML::EndMap;
+  return out.c_str();
+}
+
+}  // namespace evpipe::config

@@ -1,0 +1,63 @@
+#pragma once
+// Plain event types shared by every evpipe library.
+//
+// Conventions (docs/architecture.md): time in integer microseconds on the recording's or device's clock;
+// image origin top-left, x right, y down; polarity true = ON (brightness increase).
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace evpipe {
+
+struct Event {
+  std::int64_t t_us = 0;
+  std::uint16_t x = 0;
+  std::uint16_t y = 0;
+  bool polarity = false;  // true = ON
+
+  friend bool operator==(const Event&, const Event&) = default;
+};
+
+using EventSpan = std::span<const Event>;
+
+/// Label of an event in a labelled recording (text files with a fifth column, evsim output).
+enum class Label : std::uint8_t { noise = 0, signal = 1 };
+
+/// A contiguous batch of events, produced once by a source and then only shared (never copied or mutated):
+/// hand it on as `EventBatchPtr`.
+struct EventBatch {
+  std::vector<Event> events;
+  /// Empty, or one label per event (same index) when the source is labelled.
+  std::vector<Label> labels;
+  /// True when the source's clock jumped (device timestamp reset, backward jump in a file) before this
+  /// batch: windows and trackers that span batches must restart here.
+  bool discontinuity_before = false;
+
+  [[nodiscard]] EventSpan span() const noexcept { return events; }
+  [[nodiscard]] bool empty() const noexcept { return events.empty(); }
+  [[nodiscard]] std::size_t size() const noexcept { return events.size(); }
+  [[nodiscard]] bool labelled() const noexcept { return !labels.empty(); }
+};
+
+using EventBatchPtr = std::shared_ptr<const EventBatch>;
+
+/// Sensor size in pixels.
+struct SensorGeometry {
+  int width = 346;
+  int height = 260;
+
+  [[nodiscard]] constexpr bool contains(int x, int y) const noexcept {
+    return x >= 0 && y >= 0 && x < width && y < height;
+  }
+  [[nodiscard]] constexpr std::size_t pixels() const noexcept {
+    return static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  }
+  friend bool operator==(const SensorGeometry&, const SensorGeometry&) = default;
+};
+
+inline constexpr SensorGeometry kDavis346{346, 260};
+inline constexpr SensorGeometry kDavis240{240, 180};
+
+}  // namespace evpipe

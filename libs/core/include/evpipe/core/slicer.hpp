@@ -1,0 +1,77 @@
+#pragma once
+// Time-window slicing of a shared event stream, in the spirit of dv-processing's EventStreamSlicer:
+// batches are retained (shared, never copied) until every window that needs them has been emitted.
+//
+// Windows are half-open [t0_us, t1_us). Fixed windows: hop_us == window_us. Sliding windows:
+// hop_us < window_us (consecutive windows overlap by window_us - hop_us). The first window starts at the
+// first event (or Options::start_us); later windows start on the grid start + k * hop_us. A window is
+// emitted once an event at or after its end has been seen (input must be time-ordered), or at flush().
+// Windows with no events are not emitted (a gap of hours must not produce millions of empty windows);
+// the grid stays aligned across gaps.
+
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "evpipe/core/event.hpp"
+
+namespace evpipe {
+
+/// A view of the events in [t0_us, t1_us): spans into shared batches, kept alive by `owners`.
+struct EventWindow {
+  std::int64_t t0_us = 0;
+  std::int64_t t1_us = 0;
+  std::vector<EventSpan> parts;
+  std::vector<EventBatchPtr> owners;
+  /// True for the first window after a clock discontinuity (or the first window of the stream).
+  bool starts_segment = false;
+
+  [[nodiscard]] std::size_t size() const noexcept;
+  [[nodiscard]] bool empty() const noexcept { return size() == 0; }
+  /// Copies the events into one contiguous vector (for algorithms that need a single span).
+  [[nodiscard]] std::vector<Event> contiguous() const;
+  template <typename F>
+  void for_each(F&& f) const {
+    for (const auto& part : parts)
+      for (const auto& e : part) f(e);
+  }
+};
+
+class TimeSlicer {
+ public:
+  struct Options {
+    std::int64_t window_us = 30'000;
+    std::int64_t hop_us = 30'000;
+    std::optional<std::int64_t> start_us;  ///< grid origin; default: first event
+  };
+  using Callback = std::function<void(const EventWindow&)>;
+
+  /// Throws std::invalid_argument when window_us <= 0 or hop_us <= 0.
+  explicit TimeSlicer(Options options, Callback callback);
+
+  /// Adds a time-ordered batch and emits every window that it completes.
+  void accept(const EventBatchPtr& batch);
+  /// End of stream (or before a discontinuity): emits the remaining windows that hold events.
+  void flush();
+
+  [[nodiscard]] const Options& options() const noexcept { return options_; }
+  [[nodiscard]] std::uint64_t windows_emitted() const noexcept { return emitted_; }
+  /// Batches currently retained (bounded by the window length, not the recording).
+  [[nodiscard]] std::size_t retained_batches() const noexcept { return retained_.size(); }
+
+ private:
+  void emit_ready(std::int64_t newest_t_us, bool final);
+  void emit_window(std::int64_t t0, std::int64_t t1);
+  void drop_before(std::int64_t t_us);
+
+  Options options_;
+  Callback callback_;
+  std::deque<EventBatchPtr> retained_;
+  std::optional<std::int64_t> next_t0_;
+  bool segment_start_ = true;
+  std::uint64_t emitted_ = 0;
+};
+
+}  // namespace evpipe

@@ -1,0 +1,107 @@
+#include "evpipe/core/slicer.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace evpipe {
+
+std::size_t EventWindow::size() const noexcept {
+  std::size_t n = 0;
+  for (const auto& p : parts) n += p.size();
+  return n;
+}
+
+std::vector<Event> EventWindow::contiguous() const {
+  std::vector<Event> out;
+  out.reserve(size());
+  for (const auto& p : parts) out.insert(out.end(), p.begin(), p.end());
+  return out;
+}
+
+TimeSlicer::TimeSlicer(Options options, Callback callback)
+    : options_(options), callback_(std::move(callback)) {
+  if (options_.window_us <= 0) throw std::invalid_argument("TimeSlicer: window_us must be > 0");
+  if (options_.hop_us <= 0) throw std::invalid_argument("TimeSlicer: hop_us must be > 0");
+  next_t0_ = options_.start_us;
+}
+
+void TimeSlicer::accept(const EventBatchPtr& batch) {
+  if (!batch || batch->empty()) return;
+  if (batch->discontinuity_before && !retained_.empty()) {
+    flush();
+    retained_.clear();
+    next_t0_.reset();
+    segment_start_ = true;
+  }
+  if (!next_t0_) next_t0_ = batch->events.front().t_us;
+  retained_.push_back(batch);
+  emit_ready(batch->events.back().t_us, false);
+}
+
+void TimeSlicer::flush() {
+  if (retained_.empty() || !next_t0_) return;
+  emit_ready(retained_.back()->events.back().t_us, true);
+  retained_.clear();
+}
+
+void TimeSlicer::emit_ready(std::int64_t newest_t_us, bool final) {
+  const std::int64_t w = options_.window_us;
+  const std::int64_t h = options_.hop_us;
+  while (next_t0_) {
+    const std::int64_t t0 = *next_t0_;
+    const std::int64_t t1 = t0 + w;
+    // Complete once an event at or after t1 exists; at the end, any window still holding events.
+    if (!final && newest_t_us < t1) break;
+    if (final && newest_t_us < t0) break;
+    emit_window(t0, t1);
+    // Next grid start; jump over empty stretches (no event in [next, next + w)).
+    std::int64_t next = t0 + h;
+    drop_before(next);
+    if (!retained_.empty()) {
+      // First retained event at or after `next`.
+      std::optional<std::int64_t> first_after;
+      for (const auto& b : retained_) {
+        auto it = std::lower_bound(b->events.begin(), b->events.end(), next,
+                                   [](const Event& e, std::int64_t t) { return e.t_us < t; });
+        if (it != b->events.end()) {
+          first_after = it->t_us;
+          break;
+        }
+      }
+      if (first_after && *first_after >= next + w) {
+        // Smallest grid start whose window still contains first_after.
+        const std::int64_t k = (*first_after - w - t0) / h + 1;
+        next = t0 + std::max<std::int64_t>(k, 1) * h;
+        drop_before(next);
+      }
+    }
+    next_t0_ = next;
+  }
+}
+
+void TimeSlicer::emit_window(std::int64_t t0, std::int64_t t1) {
+  EventWindow win;
+  win.t0_us = t0;
+  win.t1_us = t1;
+  for (const auto& b : retained_) {
+    const auto& ev = b->events;
+    auto lo = std::lower_bound(ev.begin(), ev.end(), t0,
+                               [](const Event& e, std::int64_t t) { return e.t_us < t; });
+    auto hi = std::lower_bound(lo, ev.end(), t1, [](const Event& e, std::int64_t t) { return e.t_us < t; });
+    if (lo != hi) {
+      win.parts.emplace_back(&*lo, static_cast<std::size_t>(hi - lo));
+      win.owners.push_back(b);
+    }
+  }
+  if (win.parts.empty()) return;
+  win.starts_segment = segment_start_;
+  segment_start_ = false;
+  ++emitted_;
+  callback_(win);
+}
+
+void TimeSlicer::drop_before(std::int64_t t_us) {
+  while (!retained_.empty() && retained_.front()->events.back().t_us < t_us) retained_.pop_front();
+}
+
+}  // namespace evpipe

@@ -1,0 +1,66 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "evpipe/config/run_config.hpp"
+#include "evpipe_test_data.hpp"
+
+using evpipe::config::ConfigError;
+using evpipe::config::parse_config;
+
+namespace {
+std::string error_of(const std::string& yaml) {
+  try {
+    parse_config(yaml, "t.yaml");
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(RunConfig, DefaultsMatchThePaper) {
+  const auto c = parse_config("");
+  EXPECT_EQ(c.window.length_us, 30'000);
+  EXPECT_EQ(c.window.hop_us, 30'000);
+  EXPECT_EQ(c.source.speed, 1.0);
+  EXPECT_TRUE(c.device.ba_filter);
+  EXPECT_EQ(c.device.ba_filter_time_us, 2000);
+}
+
+TEST(RunConfig, ShippedConfigLoadsAndEqualsDefaults) {
+  const auto path = evpipe::testing::source_dir() / "config" / "evpipe.yaml";
+  const auto c = evpipe::config::load_config(path.string());
+  EXPECT_EQ(c.to_yaml(), evpipe::config::RunConfig{}.to_yaml())
+      << "config/evpipe.yaml must document every key with its default value";
+}
+
+TEST(RunConfig, RoundTripsThroughYaml) {
+  auto c = parse_config("source: {speed: max, batch_events: 100}\nwindow: {length_us: 20000, hop_us: 5000}\n");
+  EXPECT_FALSE(c.source.speed.has_value());
+  const auto again = parse_config(c.to_yaml());
+  EXPECT_EQ(again.to_yaml(), c.to_yaml());
+  EXPECT_EQ(again.window.hop_us, 5000);
+}
+
+TEST(RunConfig, ErrorsNameFileAndKey) {
+  EXPECT_EQ(error_of("window: {length_us: -5}"), "t.yaml: window.length_us: must be > 0, got -5");
+  EXPECT_NE(error_of("window: {lenght_us: 5}").find("t.yaml: window.lenght_us: unknown key"), std::string::npos);
+  EXPECT_NE(error_of("foo: 1").find("t.yaml: foo: unknown section"), std::string::npos);
+  EXPECT_NE(error_of("source: {speed: fast}").find("speed must be a positive number or 'max'"), std::string::npos);
+  EXPECT_NE(error_of("source: {batch_events: abc}").find("t.yaml: source.batch_events: expected an integer, got 'abc'"),
+            std::string::npos);
+  EXPECT_NE(error_of("device: {ba_filter_time_us: 9999999}").find("device.ba_filter_time_us"), std::string::npos);
+  EXPECT_NE(error_of("window: {length_us: 10, hop_us: 20}").find("window.hop_us"), std::string::npos);
+  EXPECT_NE(error_of("log: {level: loud}").find("log.level"), std::string::npos);
+  EXPECT_NE(error_of("source: [1, 2").find("t.yaml: line"), std::string::npos);
+}
+
+TEST(RunConfig, MissingFile) {
+  try {
+    evpipe::config::load_config("/nonexistent/evpipe.yaml");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/evpipe.yaml"), std::string::npos);
+  }
+}
