@@ -19,6 +19,18 @@ if(EVPIPE_SANITIZE)
   add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   add_link_options(-fsanitize=address,undefined)
 endif()
+if(EVPIPE_FUZZ)
+  if(NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+    message(FATAL_ERROR "EVPIPE_FUZZ=ON needs clang (libFuzzer): configure with -DCMAKE_C_COMPILER=clang "
+                        "-DCMAKE_CXX_COMPILER=clang++ (tools/run_fuzzers.sh does)")
+  endif()
+  # libFuzzer (clang only): every library gets coverage instrumentation without libFuzzer's main
+  # (-fsanitize=fuzzer-no-link) plus ASan/UBSan, so a bug deep inside a reader is a finding; the fuzz
+  # targets themselves link with -fsanitize=fuzzer (tests/fuzz/CMakeLists.txt). UB aborts (no recovery).
+  add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-omit-frame-pointer
+                      -fno-sanitize-recover=all)
+  add_link_options(-fsanitize=address,undefined)
+endif()
 if(EVPIPE_TSAN)
   add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
   add_link_options(-fsanitize=thread)

@@ -159,10 +159,11 @@ void RunConfig::validate() const {
   check(source.discontinuity_us > 0, "source.discontinuity_us", "must be > 0");
   check(source.default_width > 0 && source.default_width <= 32768, "source.default_width", "must be in [1, 32768]");
   check(source.default_height > 0 && source.default_height <= 32768, "source.default_height", "must be in [1, 32768]");
-  check(device.ba_filter_time_us >= 0 && device.ba_filter_time_us <= 4095 * 250, "device.ba_filter_time_us",
-        fmt::format("must be in [0, {}] (the FPGA counts 250 us steps), got {}", 4095 * 250, device.ba_filter_time_us));
-  check(device.refractory_time_us >= 0 && device.refractory_time_us <= 4095 * 250, "device.refractory_time_us",
-        fmt::format("must be in [0, {}], got {}", 4095 * 250, device.refractory_time_us));
+  for (const auto& [key, value] : {std::pair{"device.ba_filter_time_us", device.ba_filter_time_us},
+                                   std::pair{"device.refractory_time_us", device.refractory_time_us}})
+    check(value >= 0 && value <= 4095 * 250 && value % 250 == 0, key,
+          fmt::format("must be a multiple of 250 in [0, {}] (the FPGA counts 250 us steps), got {}", 4095 * 250,
+                      value));
   check(device.container_interval_us >= 100 && device.container_interval_us <= 1'000'000,
         "device.container_interval_us", "must be in [100, 1000000]");
   check(device.reconnect_interval_ms >= 10, "device.reconnect_interval_ms", "must be >= 10");

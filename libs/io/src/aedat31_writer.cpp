@@ -71,8 +71,15 @@ class Aedat31Writer final : public EventWriter {
 
   void close() override {
     if (file_ == nullptr) return;
-    flush_packet();
-    std::FILE* f = std::exchange(file_, nullptr);
+    std::FILE* f = file_;
+    try {
+      flush_packet();
+    } catch (...) {
+      file_ = nullptr;
+      std::fclose(f);
+      throw;
+    }
+    file_ = nullptr;
     const bool write_failed = std::ferror(f) != 0;
     const bool close_failed = std::fclose(f) != 0;
     if (write_failed || close_failed) throw SourceError(fmt::format("{}: write failed", path_));

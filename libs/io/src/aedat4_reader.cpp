@@ -11,10 +11,10 @@
 #include <lz4frame.h>
 #include <zstd.h>
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <charconv>
 #include <cstring>
-#include <fmt/format.h>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -28,11 +28,12 @@ namespace evpipe::io {
 namespace {
 
 constexpr std::string_view kMagic = "#!AER-DAT4.0\r\n";
-constexpr std::uint64_t kHeaderStart = kMagic.size();           // the IOHeader size prefix
-constexpr std::uint64_t kMaxHeaderBytes = 64ull << 20;          // IOHeader (mostly XML): far below this
-constexpr std::uint64_t kMaxStoredPacketBytes = 256ull << 20;   // one packet as stored in the file
-constexpr std::uint64_t kMaxDecodedPacketBytes = 1ull << 30;    // one packet after decompression
+constexpr std::uint64_t kHeaderStart = kMagic.size();          // the IOHeader size prefix
+constexpr std::uint64_t kMaxHeaderBytes = 64ull << 20;         // IOHeader (mostly XML): far below this
+constexpr std::uint64_t kMaxStoredPacketBytes = 256ull << 20;  // one packet as stored in the file
+constexpr std::uint64_t kMaxDecodedPacketBytes = 1ull << 30;   // one packet after decompression
 constexpr std::size_t kPacketHeaderBytes = 8;
+constexpr std::size_t kReadAheadBytes = std::size_t{1} << 20;
 constexpr std::uint64_t kMaxCorruptWarnings = 20;
 
 // ----------------------------------------------------------------------------------------------------
@@ -80,8 +81,7 @@ std::optional<std::string_view> tag_attribute(std::string_view tag, std::string_
     if (at == std::string_view::npos) return std::nullopt;
     from = at + key.size();
     // must be a whole attribute name: preceded by whitespace, followed by ="
-    if (at == 0 || (tag[at - 1] != ' ' && tag[at - 1] != '\t' && tag[at - 1] != '\n' && tag[at - 1] != '\r'))
-      continue;
+    if (at == 0 || (tag[at - 1] != ' ' && tag[at - 1] != '\t' && tag[at - 1] != '\n' && tag[at - 1] != '\r')) continue;
     std::size_t p = from;
     while (p < tag.size() && (tag[p] == ' ' || tag[p] == '\t')) ++p;
     if (p >= tag.size() || tag[p] != '=') continue;
@@ -178,8 +178,11 @@ struct ZstdCtx {
 class Aedat4Reader final : public FileReader {
  public:
   Aedat4Reader(std::unique_ptr<ByteSource> source, ReaderOptions options)
-      : source_(std::move(source)), options_(std::move(options)), file_(source_->name()),
-        clock_(options_, stats_, file_), batch_events_(std::max<std::size_t>(1, options_.batch_events)) {
+      : source_(std::move(source)),
+        options_(std::move(options)),
+        file_(source_->name()),
+        clock_(options_, stats_, file_),
+        batch_events_(std::max<std::size_t>(1, options_.batch_events)) {
     info_.name = file_;
     info_.format = "aedat4";
     info_.geometry = options_.default_geometry;
@@ -228,18 +231,17 @@ class Aedat4Reader final : public FileReader {
     const std::uint64_t header_end = kHeaderStart + 4 + header_bytes;
     if (header_bytes > kMaxHeaderBytes || header_end > stop_)
       throw FormatError(file_, kHeaderStart,
-                        fmt::format("IOHeader size {} runs past the end of the file ({} bytes remain)",
-                                    header_bytes, stop_ - std::min(stop_, kHeaderStart + 4)));
+                        fmt::format("IOHeader size {} runs past the end of the file ({} bytes remain)", header_bytes,
+                                    stop_ - std::min(stop_, kHeaderStart + 4)));
 
     std::vector<std::uint8_t> buf(4 + header_bytes);
     std::memcpy(buf.data(), prefix.data(), 4);
     if (read_up_to(std::as_writable_bytes(std::span(buf).subspan(4))) < header_bytes)
       throw FormatError(file_, kHeaderStart + 4, "the file ends inside the IOHeader");
-    flatbuffers::Verifier verifier(buf.data(), buf.size());
-    if (!fb::VerifySizePrefixedIOHeaderBuffer(verifier))
-      throw FormatError(file_, kHeaderStart + 4,
-                        "the IOHeader is not a valid 'IOHE' flatbuffer (failed verification)");
-    const fb::IOHeader* header = fb::GetSizePrefixedIOHeader(buf.data());
+    const std::uint8_t* root = verified<fb::IOHeader>(buf, fb::IOHeaderIdentifier(), header_copy_);
+    if (root == nullptr)
+      throw FormatError(file_, kHeaderStart + 4, "the IOHeader is not a valid 'IOHE' flatbuffer (failed verification)");
+    const fb::IOHeader* header = fb::GetIOHeader(root);
 
     const auto compression = header->compression();
     switch (compression) {
@@ -247,11 +249,12 @@ class Aedat4Reader final : public FileReader {
       case fb::CompressionType::LZ4:
       case fb::CompressionType::LZ4_HIGH:
       case fb::CompressionType::ZSTD:
-      case fb::CompressionType::ZSTD_HIGH: break;
+      case fb::CompressionType::ZSTD_HIGH:
+        break;
       default:
-        throw FormatError(file_, kHeaderStart + 4,
-                          fmt::format("unknown compression type {} in the IOHeader",
-                                      static_cast<std::int32_t>(compression)));
+        throw FormatError(
+            file_, kHeaderStart + 4,
+            fmt::format("unknown compression type {} in the IOHeader", static_cast<std::int32_t>(compression)));
     }
     compression_ = compression;
     pos_ = header_end;
@@ -300,9 +303,31 @@ class Aedat4Reader final : public FileReader {
     } else {
       clock_.warn(kHeaderStart + 4,
                   fmt::format("event stream {} states no valid sensor size (sizeX={} sizeY={}): assuming {}x{}",
-                              chosen.id, chosen.size_x, chosen.size_y, info_.geometry.width,
-                              info_.geometry.height));
+                              chosen.id, chosen.size_x, chosen.size_y, info_.geometry.width, info_.geometry.height));
     }
+  }
+
+  /// Verifies a size-prefixed flatbuffer (`sized` = uint32 size + buffer, in memory aligned to 8) and
+  /// returns its unprefixed start, or nullptr. Writers differ in what they align to: dv-processing
+  /// aligns fields relative to the size prefix (FlatBuffers' FinishSizePrefixed), another writer
+  /// (davis346-faery-trimmed) relative to the buffer after it. The second layout is verified on an
+  /// aligned copy in `copy`, so that every access stays aligned.
+  template <typename T>
+  static const std::uint8_t* verified(std::span<const std::uint8_t> sized, const char* identifier,
+                                      std::vector<std::uint64_t>& copy) {
+    if (sized.size() < 8 ||
+        detail::load_le<std::uint32_t>(reinterpret_cast<const std::byte*>(sized.data())) != sized.size() - 4)
+      return nullptr;
+    {
+      flatbuffers::Verifier verifier(sized.data(), sized.size());
+      if (verifier.VerifySizePrefixedBuffer<T>(identifier)) return sized.data() + 4;
+    }
+    const std::size_t n = sized.size() - 4;
+    copy.resize((n + 7) / 8);
+    auto* plain = reinterpret_cast<std::uint8_t*>(copy.data());
+    std::memcpy(plain, sized.data() + 4, n);
+    flatbuffers::Verifier verifier(plain, n);
+    return verifier.VerifyBuffer<T>(identifier) ? plain : nullptr;
   }
 
   // ---- packets -----------------------------------------------------------------------------------
@@ -318,6 +343,41 @@ class Aedat4Reader final : public FileReader {
     return done;
   }
 
+  /// Makes n bytes at pos_ available in the read-ahead window (reading ahead kReadAheadBytes at a time, so
+  /// that small packets cost no system call each); returns how many are available (< n only at the end of
+  /// the input). Callers bound n (packet header, or a packet size checked against the file size and cap).
+  std::size_t fill(std::size_t n) {
+    std::size_t have = window_end_ - window_begin_;
+    if (have >= n) return n;
+    if (window_begin_ > 0) {
+      std::memmove(window_.data(), window_.data() + window_begin_, have);
+      window_begin_ = 0;
+      window_end_ = have;
+    }
+    if (window_.size() < std::max(n, kReadAheadBytes)) window_.resize(std::max(n, kReadAheadBytes));
+    window_end_ += read_up_to(std::span(window_.data() + window_end_, window_.size() - window_end_));
+    have = window_end_ - window_begin_;
+    return std::min(n, have);
+  }
+
+  void consume(std::size_t n) {
+    window_begin_ += n;
+    pos_ += n;
+    stats_.bytes_read = pos_;
+  }
+
+  /// Skips n bytes (a packet that is not read): within the window, else by seeking.
+  bool skip(std::uint64_t n) {
+    if (n <= window_end_ - window_begin_) {
+      consume(static_cast<std::size_t>(n));
+      return true;
+    }
+    pos_ += n;
+    stats_.bytes_read = pos_;
+    window_begin_ = window_end_ = 0;
+    return source_->seek(pos_);
+  }
+
   void truncated(std::uint64_t at, std::uint64_t bytes, const std::string& what) {
     stats_.truncated_bytes += bytes;
     clock_.warn(at, what + fmt::format(": the recording is truncated; {} trailing bytes ignored", bytes));
@@ -327,8 +387,7 @@ class Aedat4Reader final : public FileReader {
 
   void corrupt(std::uint64_t at, const std::string& what) {
     ++stats_.corrupt_packets;
-    if (stats_.corrupt_packets <= kMaxCorruptWarnings)
-      clock_.warn(at, what + " (packet skipped)");
+    if (stats_.corrupt_packets <= kMaxCorruptWarnings) clock_.warn(at, what + " (packet skipped)");
     if (stats_.corrupt_packets == kMaxCorruptWarnings)
       clock_.warn(std::nullopt, "further corrupt packets are counted but not reported");
   }
@@ -342,15 +401,14 @@ class Aedat4Reader final : public FileReader {
   bool load_next_packet() {
     while (pos_ < stop_) {
       const std::uint64_t header_at = pos_;
-      std::array<std::byte, kPacketHeaderBytes> header{};
-      const std::size_t got = read_up_to(header);
+      const std::size_t got = fill(kPacketHeaderBytes);
       if (got == 0 && !file_size_) return false;  // unknown size: clean end of input
-      if (got < header.size()) {
+      if (got < kPacketHeaderBytes) {
         truncated(header_at, got, fmt::format("packet header cut off after {} bytes", got));
         return false;
       }
-      const auto stream_id = detail::load_le<std::int32_t>(header.data());
-      const auto size = detail::load_le<std::int32_t>(header.data() + 4);
+      const auto stream_id = detail::load_le<std::int32_t>(window_.data() + window_begin_);
+      const auto size = detail::load_le<std::int32_t>(window_.data() + window_begin_ + 4);
       const std::uint64_t payload_at = header_at + kPacketHeaderBytes;
       if (size < 0)
         throw FormatError(file_, header_at,
@@ -361,31 +419,37 @@ class Aedat4Reader final : public FileReader {
                               stop_ - std::min(stop_, payload_at)));
         return false;
       }
-      pos_ = payload_at + static_cast<std::uint64_t>(size);
-      stats_.bytes_read = pos_;
+      consume(kPacketHeaderBytes);
 
       if (!is_event_stream(stream_id) || static_cast<std::uint64_t>(size) > kMaxStoredPacketBytes) {
         if (is_event_stream(stream_id))
-          corrupt(header_at, fmt::format("events packet of {} bytes exceeds the {} MiB limit", size,
-                                         kMaxStoredPacketBytes >> 20));
+          corrupt(header_at,
+                  fmt::format("events packet of {} bytes exceeds the {} MiB limit", size, kMaxStoredPacketBytes >> 20));
         else
           ++stats_.skipped_non_dvs;
-        if (!source_->seek(pos_)) {
+        if (!skip(static_cast<std::uint64_t>(size))) {
           truncated(header_at, 0, "cannot skip past the packet");
           return false;
         }
         continue;
       }
 
+      // size is bounded here by the remaining file size and kMaxStoredPacketBytes
       const auto stored_bytes = static_cast<std::size_t>(size);
-      if (stored_.size() < stored_bytes) stored_.resize(stored_bytes);
-      const std::span<std::byte> stored(stored_.data(), stored_bytes);
-      const std::size_t read = read_up_to(stored);
-      if (read < stored_bytes) {
-        truncated(header_at, kPacketHeaderBytes + read,
-                  fmt::format("packet of stream {} declares {} bytes but the input ends after {}", stream_id,
-                              size, read));
+      const std::size_t available = fill(stored_bytes);
+      if (available < stored_bytes) {
+        truncated(header_at, kPacketHeaderBytes + available,
+                  fmt::format("packet of stream {} declares {} bytes but the input ends after {}", stream_id, size,
+                              available));
         return false;
+      }
+      std::span<const std::byte> stored(window_.data() + window_begin_, stored_bytes);
+      consume(stored_bytes);  // the bytes stay in the window until the next fill()
+      if (compression_ == fb::CompressionType::NONE) {
+        // the flatbuffer is read in place: copy it to an aligned buffer
+        if (stored_.size() < stored_bytes) stored_.resize(stored_bytes);
+        std::memcpy(stored_.data(), stored.data(), stored_bytes);
+        stored = std::span<const std::byte>(stored_.data(), stored_bytes);
       }
 
       std::span<const std::byte> buffer;
@@ -399,14 +463,15 @@ class Aedat4Reader final : public FileReader {
         ++stats_.skipped_non_dvs;
         continue;
       }
-      flatbuffers::Verifier verifier(bytes, buffer.size());
-      if (!fb::VerifySizePrefixedEventPacketBuffer(verifier)) {
+      const std::uint8_t* root =
+          verified<fb::EventPacket>(std::span(bytes, buffer.size()), fb::EventPacketIdentifier(), realigned_);
+      if (root == nullptr) {
         corrupt(payload_at,
                 fmt::format("packet of stream {} is not a valid 'EVTS' flatbuffer (failed verification)", stream_id));
         continue;
       }
       if (identify_by_content_) event_stream_ = stream_id;
-      const auto* elements = fb::GetSizePrefixedEventPacket(bytes)->elements();
+      const auto* elements = fb::GetEventPacket(root)->elements();
       if (elements == nullptr || elements->size() == 0) continue;
       elements_ = elements;
       cursor_ = 0;
@@ -421,34 +486,51 @@ class Aedat4Reader final : public FileReader {
   /// by kMaxDecodedPacketBytes; the buffer grows only as output is actually produced.
   std::string decompress(std::span<const std::byte> stored, std::span<const std::byte>& out) {
     switch (compression_) {
-      case fb::CompressionType::NONE: out = stored; return {};
+      case fb::CompressionType::NONE:
+        out = stored;
+        return {};
       case fb::CompressionType::LZ4:
-      case fb::CompressionType::LZ4_HIGH: return decompress_lz4(stored, out);
+      case fb::CompressionType::LZ4_HIGH:
+        return decompress_lz4(stored, out);
       case fb::CompressionType::ZSTD:
-      case fb::CompressionType::ZSTD_HIGH: return decompress_zstd(stored, out);
+      case fb::CompressionType::ZSTD_HIGH:
+        return decompress_zstd(stored, out);
     }
     return "unknown compression";
   }
 
-  /// Room for more output: grows decoded_ up to `limit`. False when the limit is reached.
-  bool make_room(std::size_t produced, std::size_t limit, std::size_t stored_bytes) {
-    if (produced < decoded_.size() && produced < limit) return true;
-    if (decoded_.size() >= limit) return false;
-    const std::size_t want = std::max({decoded_.size() * 2, stored_bytes * 4, std::size_t{64} << 10});
-    decoded_.resize(std::min(want, limit));
-    return produced < decoded_.size();
+  /// Bytes the packet may decompress to: its size prefix + 4 once decoded, else the global cap.
+  std::uint64_t output_limit(std::size_t produced) const {
+    if (produced < 4) return kMaxDecodedPacketBytes;
+    return std::uint64_t{detail::load_le<std::uint32_t>(decoded_.data())} + 4;
   }
 
-  /// Limit on the decompressed size once the size prefix has been decoded.
-  static std::size_t output_limit(const std::vector<std::byte>& decoded, std::size_t produced) {
-    if (produced < 4) return kMaxDecodedPacketBytes;
-    const std::uint64_t total = std::uint64_t{detail::load_le<std::uint32_t>(decoded.data())} + 4;
-    return static_cast<std::size_t>(std::min<std::uint64_t>(total, kMaxDecodedPacketBytes));
+  /// Output space for the next decompression step. One guard byte past the limit lets the decoder
+  /// finish a frame whose output exactly fills the limit, and reveals output that exceeds it. decoded_
+  /// grows only as output is actually produced (geometric), never beyond the limit + 1.
+  std::size_t make_room(std::size_t produced, std::uint64_t limit, std::size_t stored_bytes) {
+    const std::size_t end = static_cast<std::size_t>(limit) + 1;
+    if (decoded_.size() < end && produced >= decoded_.size()) {
+      const std::size_t want = std::max({decoded_.size() * 2, stored_bytes * 4, std::size_t{64} << 10});
+      decoded_.resize(std::min(want, end));
+    }
+    return std::min(decoded_.size(), end) - produced;
+  }
+
+  /// "" while the output is within bounds, else the reason.
+  static std::string check_limit(std::size_t produced, std::uint64_t limit) {
+    if (limit > kMaxDecodedPacketBytes)
+      return fmt::format("size prefix of {} bytes exceeds the {} MiB limit", limit - 4, kMaxDecodedPacketBytes >> 20);
+    if (produced > limit)
+      return produced < 4 || limit == kMaxDecodedPacketBytes
+                 ? fmt::format("decompressed packet exceeds {} MiB", kMaxDecodedPacketBytes >> 20)
+                 : "decompressed data is longer than the packet's size prefix";
+    return {};
   }
 
   std::string check_decoded_size(std::size_t produced) const {
     if (produced < 8) return fmt::format("decompressed packet has only {} bytes", produced);
-    const std::uint64_t total = std::uint64_t{detail::load_le<std::uint32_t>(decoded_.data())} + 4;
+    const std::uint64_t total = output_limit(produced);
     if (total != produced)
       return fmt::format("decompressed packet has {} bytes but its size prefix says {}", produced, total);
     return {};
@@ -461,25 +543,20 @@ class Aedat4Reader final : public FileReader {
     std::size_t src_left = stored.size();
     std::size_t produced = 0;
     while (true) {
-      const std::size_t limit = output_limit(decoded_, produced);
-      if (produced > limit) return "decompressed data is longer than the packet's size prefix";
-      if (!make_room(produced, limit, stored.size()))
-        return produced >= limit && limit < kMaxDecodedPacketBytes
-                   ? "decompressed data is longer than the packet's size prefix"
-                   : fmt::format("decompressed packet exceeds {} MiB", kMaxDecodedPacketBytes >> 20);
-      std::size_t dst_n = std::min(decoded_.size(), limit) - produced;
+      const std::uint64_t limit = output_limit(produced);
+      if (auto error = check_limit(produced, limit); !error.empty()) return error;
+      std::size_t dst_n = make_room(produced, limit, stored.size());
       std::size_t src_n = src_left;
-      const std::size_t hint =
-          LZ4F_decompress(lz4_.ctx, decoded_.data() + produced, &dst_n, src, &src_n, nullptr);
+      const std::size_t hint = LZ4F_decompress(lz4_.ctx, decoded_.data() + produced, &dst_n, src, &src_n, nullptr);
       if (LZ4F_isError(hint)) return fmt::format("LZ4 error: {}", LZ4F_getErrorName(hint));
       produced += dst_n;
       src += src_n;
       src_left -= src_n;
-      if (hint == 0 && src_left == 0) break;                       // frame complete, input used up
+      if (hint == 0 && src_left == 0) break;  // frame complete, input used up
       if (src_left == 0 && dst_n == 0) return "LZ4 frame is incomplete";
-      if (src_n == 0 && dst_n == 0 && produced < std::min(decoded_.size(), limit))
-        return "LZ4 decoder made no progress";
+      if (src_n == 0 && dst_n == 0) return "LZ4 decoder made no progress";
     }
+    if (auto error = check_limit(produced, output_limit(produced)); !error.empty()) return error;
     if (auto error = check_decoded_size(produced); !error.empty()) return error;
     out = std::span<const std::byte>(decoded_.data(), produced);
     return {};
@@ -491,13 +568,10 @@ class Aedat4Reader final : public FileReader {
     ZSTD_inBuffer in{stored.data(), stored.size(), 0};
     std::size_t produced = 0;
     while (true) {
-      const std::size_t limit = output_limit(decoded_, produced);
-      if (produced > limit) return "decompressed data is longer than the packet's size prefix";
-      if (!make_room(produced, limit, stored.size()))
-        return produced >= limit && limit < kMaxDecodedPacketBytes
-                   ? "decompressed data is longer than the packet's size prefix"
-                   : fmt::format("decompressed packet exceeds {} MiB", kMaxDecodedPacketBytes >> 20);
-      ZSTD_outBuffer dst{decoded_.data(), std::min(decoded_.size(), limit), produced};
+      const std::uint64_t limit = output_limit(produced);
+      if (auto error = check_limit(produced, limit); !error.empty()) return error;
+      const std::size_t room = make_room(produced, limit, stored.size());
+      ZSTD_outBuffer dst{decoded_.data(), produced + room, produced};
       const std::size_t in_before = in.pos;
       const std::size_t ret = ZSTD_decompressStream(zstd_.ctx, &dst, &in);
       if (ZSTD_isError(ret)) return fmt::format("zstd error: {}", ZSTD_getErrorName(ret));
@@ -505,8 +579,9 @@ class Aedat4Reader final : public FileReader {
       produced = dst.pos;
       if (ret == 0 && in.pos == in.size) break;  // frame complete and flushed, input used up
       if (in.pos == in.size && dst.pos < dst.size) return "zstd frame is incomplete";
-      if (!progressed && dst.pos < dst.size) return "zstd decoder made no progress";
+      if (!progressed) return "zstd decoder made no progress";
     }
+    if (auto error = check_limit(produced, output_limit(produced)); !error.empty()) return error;
     if (auto error = check_decoded_size(produced); !error.empty()) return error;
     out = std::span<const std::byte>(decoded_.data(), produced);
     return {};
@@ -517,35 +592,76 @@ class Aedat4Reader final : public FileReader {
   /// Decodes events of the current packet from cursor_; returns a batch when one is complete (the
   /// packet may then have events left), nullptr when the packet is exhausted.
   EventBatchPtr decode_current_packet() {
-    const auto n = elements_->size();
-    const SensorGeometry geometry = info_.geometry;
+    const std::uint32_t n = elements_->size();
+    // Structs are stored inline: the vector's data is an array of fb::Event (verified, aligned).
+    const auto* events = reinterpret_cast<const fb::Event*>(elements_->Data());
+    const auto width = static_cast<unsigned>(info_.geometry.width);
+    const auto height = static_cast<unsigned>(info_.geometry.height);
     while (cursor_ < n) {
-      const fb::Event* e = elements_->Get(cursor_);
-      const int x = e->x();
-      const int y = e->y();
-      if (!geometry.contains(x, y))
-        throw FormatError(file_, packet_at_,
-                          fmt::format("event {} of the packet: x={} y={} is outside the {}x{} sensor{}", cursor_,
-                                      x, y, geometry.width, geometry.height,
-                                      info_.geometry_known ? "" : " (size assumed: the file states none)"));
-      const Event ev{e->timestamp(), static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(y), e->polarity()};
-      ++cursor_;
-      switch (clock_.check(ev.t_us, packet_at_)) {
-        case detail::TimeOrder::Verdict::drop: continue;
-        case detail::TimeOrder::Verdict::keep: break;
-        case detail::TimeOrder::Verdict::keep_after_discontinuity:
-          if (!pending_.events.empty()) {
-            auto batch = take_pending();
-            pending_.discontinuity_before = true;
-            pending_.events.push_back(ev);
-            return batch;
-          }
-          pending_.discontinuity_before = true;
-          break;
+      // Fast path: copy the run of in-order events inside the sensor, then tell the TimeOrder only the
+      // run's last timestamp (all of them would have been kept; its state ends the same).
+      auto& out = pending_.events;
+      const std::size_t base = out.size();
+      const std::uint32_t run_end =
+          cursor_ + static_cast<std::uint32_t>(std::min<std::size_t>(batch_events_ - base, n - cursor_));
+      out.resize(base + (run_end - cursor_));
+      Event* dst = out.data() + base;
+      std::int64_t last = last_t_us_;
+      std::uint32_t i = cursor_;
+      for (; i < run_end; ++i) {
+        const fb::Event& e = events[i];
+        const std::int64_t t = e.timestamp();
+        const int x = e.x();
+        const int y = e.y();
+        if (t < last || static_cast<unsigned>(x) >= width || static_cast<unsigned>(y) >= height) break;
+        last = t;
+        *dst++ = Event{t, static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(y), e.polarity()};
       }
-      pending_.events.push_back(ev);
-      if (pending_.events.size() >= batch_events_) return take_pending();
+      out.resize(base + (i - cursor_));
+      if (i > cursor_) {
+        clock_.check(last, packet_at_);
+        last_t_us_ = last;
+        cursor_ = i;
+      }
+      if (out.size() >= batch_events_) return take_pending();
+      if (i < run_end) {
+        if (auto batch = decode_one(events[i])) return batch;  // out of order, or outside the sensor
+      }
     }
+    return nullptr;
+  }
+
+  /// The general path for the event at cursor_: geometry error, time-order policy, discontinuity split.
+  EventBatchPtr decode_one(const fb::Event& e) {
+    const int x = e.x();
+    const int y = e.y();
+    if (!info_.geometry.contains(x, y))
+      throw FormatError(file_, packet_at_,
+                        fmt::format("event {} of the packet: x={} y={} is outside the {}x{} sensor{}", cursor_, x, y,
+                                    info_.geometry.width, info_.geometry.height,
+                                    info_.geometry_known ? "" : " (size assumed: the file states none)"));
+    const Event ev{e.timestamp(), static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(y), e.polarity()};
+    ++cursor_;
+    const auto verdict = clock_.check(ev.t_us, packet_at_);
+    // mirror TimeOrder's notion of the previous timestamp (it advances on in-order events and resets)
+    if (verdict == detail::TimeOrder::Verdict::keep_after_discontinuity || ev.t_us >= last_t_us_) last_t_us_ = ev.t_us;
+    switch (verdict) {
+      case detail::TimeOrder::Verdict::drop:
+        return nullptr;
+      case detail::TimeOrder::Verdict::keep:
+        break;
+      case detail::TimeOrder::Verdict::keep_after_discontinuity:
+        if (!pending_.events.empty()) {
+          auto batch = take_pending();
+          pending_.discontinuity_before = true;
+          pending_.events.push_back(ev);
+          return batch;
+        }
+        pending_.discontinuity_before = true;
+        break;
+    }
+    pending_.events.push_back(ev);
+    if (pending_.events.size() >= batch_events_) return take_pending();
     return nullptr;
   }
 
@@ -568,17 +684,24 @@ class Aedat4Reader final : public FileReader {
   std::uint64_t pos_ = 0;   // next unread byte
   std::uint64_t stop_ = 0;  // end of the packet area (data table or end of file)
   fb::CompressionType compression_ = fb::CompressionType::NONE;
-  std::int32_t event_stream_ = -1;   // the stream read; -1 = none (yet)
+  std::int32_t event_stream_ = -1;    // the stream read; -1 = none (yet)
   bool identify_by_content_ = false;  // no stream table: accept the first stream whose packets are EVTS
 
   Lz4Ctx lz4_;
   ZstdCtx zstd_;
-  std::vector<std::byte> stored_;   // one packet as stored (grows to the largest packet)
-  std::vector<std::byte> decoded_;  // one packet decompressed (idem)
+  std::vector<std::byte> window_;  // read-ahead: file bytes from pos_ at window_[window_begin_]
+  std::size_t window_begin_ = 0;
+  std::size_t window_end_ = 0;
+  std::vector<std::byte> stored_;           // an uncompressed packet, copied to be aligned
+  std::vector<std::byte> decoded_;          // one packet decompressed (grows to the largest)
+  std::vector<std::uint64_t> realigned_;    // a packet re-aligned for verification (rare layout)
+  std::vector<std::uint64_t> header_copy_;  // the IOHeader, idem
 
-  const flatbuffers::Vector<const fb::Event*>* elements_ = nullptr;  // points into stored_/decoded_
+  // the current packet's events: in stored_, decoded_ or realigned_ (never in window_)
+  const flatbuffers::Vector<const fb::Event*>* elements_ = nullptr;
   std::uint32_t cursor_ = 0;
-  std::uint64_t packet_at_ = 0;  // file offset of the current packet's payload
+  std::int64_t last_t_us_ = std::numeric_limits<std::int64_t>::min();  // TimeOrder's previous timestamp
+  std::uint64_t packet_at_ = 0;                                        // file offset of the current packet's payload
   EventBatch pending_;
 };
 

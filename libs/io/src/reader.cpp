@@ -51,16 +51,18 @@ Format detect_format(std::span<const std::byte> head, std::string* why) {
     say(fmt::format("AEDAT version '{}' is not supported", version));
     return Format::unknown;
   }
-  if (starts_with(head, "% evt 2.0")) {
-    say("Prophesee RAW EVT 2.0 is not an evpipe format");
-    return Format::unknown;
-  }
-  if (starts_with(head, "% evt 3.0")) {
-    say("Prophesee RAW EVT 3.0 is not an evpipe format");
-    return Format::unknown;
-  }
   if (starts_with(head, "%")) {
-    say("a Prophesee file ('%' header: DAT or RAW) is not an evpipe format");
+    // Prophesee header: the format line ("% evt 2.0", "% format EVT3") need not be the first one.
+    const std::string_view text(reinterpret_cast<const char*>(head.data()), head.size());
+    if (text.find("\n% evt 2.0") != std::string_view::npos || text.starts_with("% evt 2.0"))
+      say("Prophesee RAW EVT 2.0 is not an evpipe format");
+    else if (text.find("\n% evt 3.0") != std::string_view::npos || text.starts_with("% evt 3.0") ||
+             text.find("\n% format EVT3") != std::string_view::npos)
+      say("Prophesee RAW EVT 3.0 is not an evpipe format");
+    else if (text.starts_with("% Data file containing"))
+      say("a Prophesee DAT file is not an evpipe format");
+    else
+      say("a Prophesee file ('%' header: DAT or RAW) is not an evpipe format");
     return Format::unknown;
   }
   // Text: printable bytes only, and the first line that is not a comment starts like a number.
