@@ -10,7 +10,8 @@ if [ "${1:-}" = "--check" ]; then check=1; shift; fi
 build=${1:-build/release}
 evsim="$build/apps/evsim/evsim"
 [ -x "$evsim" ] || { echo "make_sample.sh: $evsim not built" >&2; exit 1; }
-args=(--scene demo --duration-ms 1500 --noise-hz 0.5 --hot-pixels 2 --seed 20261121)
+# --no-manifest: the script itself records how the sample is made.
+args=(--scene demo --duration-ms 1500 --noise-hz 0.5 --hot-pixels 2 --seed 20261121 --no-manifest)
 if [ $check = 1 ]; then
   tmp=$(mktemp --suffix=.aedat4)
   trap 'rm -f "$tmp"' EXIT

@@ -4,7 +4,7 @@
 # invariant; the reproducer is saved under $BUILD/fuzz/artifacts/.
 #
 # Usage: tools/run_fuzzers.sh [SECONDS]
-#   EVPIPE_FUZZ_BUILD_DIR  build directory (default: <repo>/build-fuzz)
+#   EVPIPE_FUZZ_BUILD_DIR  build directory (default: <repo>/build/fuzz, the "fuzz" CMake preset)
 #   EVPIPE_FUZZERS         subset to run, e.g. "fuzz_text fuzz_aedat2" (default: all four)
 #   EVPIPE_JOBS            parallel build jobs (default 2)
 # Reproduce a finding: $BUILD/tests/fuzz/fuzz_<fmt> <artifact file>
@@ -12,7 +12,7 @@ set -euo pipefail
 
 seconds=${1:-30}
 root=$(cd "$(dirname "$0")/.." && pwd)
-build=${EVPIPE_FUZZ_BUILD_DIR:-$root/build-fuzz}
+build=${EVPIPE_FUZZ_BUILD_DIR:-$root/build/fuzz}
 fuzzers=${EVPIPE_FUZZERS:-"fuzz_aedat2 fuzz_aedat31 fuzz_aedat4 fuzz_text"}
 jobs=${EVPIPE_JOBS:-2}
 

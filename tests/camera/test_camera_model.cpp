@@ -122,16 +122,16 @@ double max_round_trip_error_px(const CameraModel& cam) {
   std::vector<Eigen::Vector2d> pixels;
   const double u_max = cam.width - 0.5;
   const double v_max = cam.height - 0.5;
-  for (double v = -0.5; v <= v_max; v += 2.0) {
-    for (double u = -0.5; u <= u_max; u += 2.0) pixels.emplace_back(u, v);
+  for (int j = 0; j <= cam.height / 2; ++j) {
+    for (int i = 0; i <= cam.width / 2; ++i) pixels.emplace_back(-0.5 + 2.0 * i, -0.5 + 2.0 * j);
   }
-  for (double u = -0.5; u <= u_max; u += 0.5) {
-    pixels.emplace_back(u, -0.5);
-    pixels.emplace_back(u, v_max);
+  for (int i = 0; i <= 2 * cam.width; ++i) {
+    pixels.emplace_back(-0.5 + 0.5 * i, -0.5);
+    pixels.emplace_back(-0.5 + 0.5 * i, v_max);
   }
-  for (double v = -0.5; v <= v_max; v += 0.5) {
-    pixels.emplace_back(-0.5, v);
-    pixels.emplace_back(u_max, v);
+  for (int j = 0; j <= 2 * cam.height; ++j) {
+    pixels.emplace_back(-0.5, -0.5 + 0.5 * j);
+    pixels.emplace_back(u_max, -0.5 + 0.5 * j);
   }
   double max_err = 0.0;
   for (const Eigen::Vector2d& px : pixels) {
@@ -153,8 +153,10 @@ TEST(CameraModelUndistort, RoundTripOverTheWholeImage) {
   EXPECT_LT(strong_err, 1e-6);
   // undistort_normalised(distort(x)) = x as well.
   const CameraModel cam = strong();
-  for (double y = -0.6; y <= 0.6; y += 0.05) {
-    for (double x = -0.8; x <= 0.8; x += 0.05) {
+  for (int j = -12; j <= 12; ++j) {
+    for (int i = -16; i <= 16; ++i) {
+      const double x = 0.05 * i;
+      const double y = 0.05 * j;
       const Eigen::Vector2d xy(x, y);
       ASSERT_LT((cam.undistort_normalised(cam.distort(xy)) - xy).norm() * cam.fx, 1e-6) << x << " " << y;
     }
@@ -164,8 +166,8 @@ TEST(CameraModelUndistort, RoundTripOverTheWholeImage) {
 TEST(CameraModelUndistort, AgreesWithOpenCvUndistortPoints) {
   const CameraModel cam = davis346();
   std::vector<cv::Point2d> pixels;
-  for (double v = 0; v < cam.height; v += 13) {
-    for (double u = 0; u < cam.width; u += 17) pixels.emplace_back(u, v);
+  for (int v = 0; v < cam.height; v += 13) {
+    for (int u = 0; u < cam.width; u += 17) pixels.emplace_back(u, v);
   }
   pixels.emplace_back(0.0, 0.0);
   pixels.emplace_back(345.0, 259.0);
@@ -321,6 +323,22 @@ TEST(CameraLoaderErrors, FileStorageAndFiles) {
             "cv.yaml: camera_matrix[0,0] (fx): must be > 0, got -243");
   EXPECT_THAT(model_error_message([&] { (void)parse_camera("%YAML:1.0\ncamera_matrix: [1, 2\n", "cv.yaml"); }),
               HasSubstr("cv.yaml: OpenCV FileStorage could not parse the file"));
+  // Truncated XML crashes OpenCV 4.6's parser: refused before OpenCV sees it.
+  EXPECT_EQ(model_error_message([] { (void)parse_camera("<?xml version=", "cv.xml"); }),
+            "cv.xml: XML FileStorage does not end with </opencv_storage> (truncated?)");
+  EXPECT_EQ(model_error_message([] {
+              (void)parse_camera("<?xml version=\"1.0\"?>\n<opencv_storage>\n<a b= \n</opencv_storage>\n", "cv.xml");
+            }),
+            "cv.xml: XML attribute value not in quotes");
+  // A huge declared size is refused before OpenCV allocates it.
+  const std::string k_huge =
+      "camera_matrix: !!opencv-matrix\n   rows: 100000\n   cols: 100000\n   dt: d\n   data: [ 1. ]\n";
+  EXPECT_EQ(model_error_message([&] { (void)parse_camera("%YAML:1.0\n" + wh + k_huge + d5, "cv.yaml"); }),
+            "cv.yaml: camera_matrix: opencv-matrix needs integer rows and cols in 1..16");
+  const std::string k_short =
+      "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1., 0., 1. ]\n";
+  EXPECT_EQ(model_error_message([&] { (void)parse_camera("%YAML:1.0\n" + wh + k_short + d5, "cv.yaml"); }),
+            "cv.yaml: camera_matrix: opencv-matrix data must hold rows x cols = 9 numbers");
   // Through the file loader: the message names the path.
   const std::string path =
       write_file("bad-cam.yaml", "camera:\n  width: 346\n  height: 260\n  fx: -3\n  fy: 1\n  cx: 1\n  cy: 1\n");

@@ -104,18 +104,29 @@ TEST(LineModelYamlErrors, NameFileAndField) {
 /// Joins "code", "value" pairs into DXF text (codes right-aligned as AutoCAD writes them).
 std::string dxf(std::initializer_list<std::pair<int, std::string>> pairs) {
   std::string out;
-  for (const auto& [code, value] : pairs)
-    out += (code < 10 ? "  " : code < 100 ? " " : "") + std::to_string(code) + "\n" + value + "\n";
+  for (const auto& [code, value] : pairs) {
+    out += code < 10 ? "  " : code < 100 ? " " : "";
+    out += std::to_string(code);
+    out += '\n';
+    out += value;
+    out += '\n';
+  }
   return out;
 }
 
-const std::string kHeaderMm = dxf({{0, "SECTION"}, {2, "HEADER"}, {9, "$INSUNITS"}, {70, "4"}, {0, "ENDSEC"}});
-const std::string kEntities = dxf({{0, "SECTION"}, {2, "ENTITIES"}});
-const std::string kEnd = dxf({{0, "ENDSEC"}, {0, "EOF"}});
+std::string header_mm() {
+  return dxf({{0, "SECTION"}, {2, "HEADER"}, {9, "$INSUNITS"}, {70, "4"}, {0, "ENDSEC"}});
+}
+std::string entities() {
+  return dxf({{0, "SECTION"}, {2, "ENTITIES"}});
+}
+std::string end_of_file() {
+  return dxf({{0, "ENDSEC"}, {0, "EOF"}});
+}
 
 TEST(LineModelDxf, PolylinesAndLines) {
   const std::string text =
-      kHeaderMm + kEntities +
+      header_mm() + entities() +
       // closed LWPOLYLINE rectangle at elevation 50: 4 edges
       dxf({{0, "LWPOLYLINE"},
            {8, "0"},
@@ -135,7 +146,7 @@ TEST(LineModelDxf, PolylinesAndLines) {
            {0, "VERTEX"},   {8, "0"},  {10, "1"}, {20, "2"},  {30, "3"},     {70, "32"},    {0, "VERTEX"},
            {8, "0"},        {10, "4"}, {20, "5"}, {30, "6"},  {70, "32"},    {0, "VERTEX"}, {8, "0"},
            {10, "7"},       {20, "8"}, {30, "9"}, {70, "32"}, {0, "SEQEND"}, {8, "0"}}) +
-      dxf({{0, "LINE"}, {8, "0"}, {10, "1"}, {20, "1"}, {30, "1"}, {11, "2"}, {21, "2"}, {31, "2"}}) + kEnd;
+      dxf({{0, "LINE"}, {8, "0"}, {10, "1"}, {20, "1"}, {30, "1"}, {11, "2"}, {21, "2"}, {31, "2"}}) + end_of_file();
   std::vector<std::string> notes;
   const LineModel m = parse_line_model(text, "parts.dxf", &notes);
   EXPECT_TRUE(notes.empty());
@@ -151,12 +162,13 @@ TEST(LineModelDxf, PolylinesAndLines) {
 }
 
 TEST(LineModelDxf, ClosedPolylineWithRepeatedVertexAndOtherEntities) {
-  const std::string text =
-      kHeaderMm + kEntities + dxf({{0, "POLYLINE"}, {66, "1"}, {70, "9"},  // 3D + closed
-                                   {0, "VERTEX"},   {10, "0"}, {20, "0"},     {30, "0"},  {0, "VERTEX"}, {10, "10"},
-                                   {20, "0"},       {30, "0"}, {0, "VERTEX"}, {10, "10"}, {20, "10"},    {30, "0"},
-                                   {0, "VERTEX"},   {10, "0"}, {20, "0"},     {30, "0"},  {0, "SEQEND"}}) +
-      dxf({{0, "CIRCLE"}, {10, "0"}, {20, "0"}, {30, "0"}, {40, "5"}}) + dxf({{0, "INSERT"}, {2, "BLOCK1"}}) + kEnd;
+  const std::string text = header_mm() + entities() +
+                           dxf({{0, "POLYLINE"}, {66, "1"}, {70, "9"},  // 3D + closed
+                                {0, "VERTEX"},   {10, "0"}, {20, "0"},     {30, "0"},  {0, "VERTEX"}, {10, "10"},
+                                {20, "0"},       {30, "0"}, {0, "VERTEX"}, {10, "10"}, {20, "10"},    {30, "0"},
+                                {0, "VERTEX"},   {10, "0"}, {20, "0"},     {30, "0"},  {0, "SEQEND"}}) +
+                           dxf({{0, "CIRCLE"}, {10, "0"}, {20, "0"}, {30, "0"}, {40, "5"}}) +
+                           dxf({{0, "INSERT"}, {2, "BLOCK1"}}) + end_of_file();
   std::vector<std::string> notes;
   const LineModel m = parse_line_model(text, "tri.dxf", &notes);
   ASSERT_EQ(m.segments_m.size(), 3u);  // the closing edge from the repeated vertex to itself is skipped
@@ -173,17 +185,17 @@ TEST(LineModelDxf, UnitsDefaultsAndObjectCoordinates) {
   const std::string line = dxf({{0, "LINE"}, {10, "1"}, {20, "2"}, {30, "3"}, {11, "4"}, {21, "5"}, {31, "6"}});
   std::vector<std::string> notes;
   // No HEADER: millimetres, said in a note.
-  const LineModel no_header = parse_line_model(kEntities + line + kEnd, "a.dxf", &notes);
+  const LineModel no_header = parse_line_model(entities() + line + end_of_file(), "a.dxf", &notes);
   EXPECT_EQ(no_header.segments_m[0].a_m, mm(1, 2, 3));
   ASSERT_EQ(notes.size(), 1u);
   EXPECT_THAT(notes[0], HasSubstr("no $INSUNITS"));
   // $INSUNITS 6: metres.
   const std::string header_m =
       dxf({{0, "SECTION"}, {2, "HEADER"}, {9, "$ACADVER"}, {1, "AC1015"}, {9, "$INSUNITS"}, {70, "6"}, {0, "ENDSEC"}});
-  const LineModel metres = parse_line_model(header_m + kEntities + line + kEnd, "b.dxf");
+  const LineModel metres = parse_line_model(header_m + entities() + line + end_of_file(), "b.dxf");
   EXPECT_EQ(metres.segments_m[0].b_m, Eigen::Vector3d(4, 5, 6));
   // An LWPOLYLINE drawn with extrusion (0, 0, -1) (a mirrored view): OCS x = -world x, z = -elevation.
-  const LineModel ocs = parse_line_model(kHeaderMm + kEntities +
+  const LineModel ocs = parse_line_model(header_mm() + entities() +
                                              dxf({{0, "LWPOLYLINE"},
                                                   {70, "0"},
                                                   {38, "7"},
@@ -194,14 +206,15 @@ TEST(LineModelDxf, UnitsDefaultsAndObjectCoordinates) {
                                                   {210, "0"},
                                                   {220, "0"},
                                                   {230, "-1"}}) +
-                                             kEnd,
+                                             end_of_file(),
                                          "c.dxf");
   ASSERT_EQ(ocs.segments_m.size(), 1u);
   EXPECT_LT((ocs.segments_m[0].a_m - mm(-10, 20, -7)).norm(), 1e-15);
   EXPECT_LT((ocs.segments_m[0].b_m - mm(-30, 20, -7)).norm(), 1e-15);
   // CRLF line ends and a byte order mark are accepted.
   std::string crlf;
-  for (char c : kHeaderMm + kEntities + line + kEnd) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
+  for (char c : header_mm() + entities() + line + end_of_file())
+    crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
   EXPECT_EQ(parse_line_model("\xEF\xBB\xBF" + crlf, "d.dxf").segments_m[0].a_m, mm(1, 2, 3));
 }
 
@@ -222,45 +235,47 @@ std::size_t line_of(const std::string& text, const std::string& needle, int nth 
 TEST(LineModelDxfErrors, NameFileAndLine) {
   const std::string good = dxf({{0, "LINE"}, {10, "0"}, {20, "0"}, {30, "0"}, {11, "1"}, {21, "0"}, {31, "0"}});
   // LINE missing its end point y: the message names the line holding "LINE" of that entity.
-  const std::string missing =
-      kHeaderMm + kEntities + good + dxf({{0, "LINE"}, {10, "0"}, {20, "0"}, {30, "0"}, {11, "1"}, {31, "0"}}) + kEnd;
+  const std::string missing = header_mm() + entities() + good +
+                              dxf({{0, "LINE"}, {10, "0"}, {20, "0"}, {30, "0"}, {11, "1"}, {31, "0"}}) + end_of_file();
   EXPECT_EQ(model_error_message([&] { (void)parse_line_model(missing, "model.dxf"); }),
             "model.dxf: line " + std::to_string(line_of(missing, "LINE", 2)) +
                 ": LINE entity #2 has no end point y (group 21)");
   // A coordinate that is not a number: the line of the value.
   const std::string bad_number =
-      kHeaderMm + kEntities + dxf({{0, "LINE"}, {10, "0"}, {20, "1,5"}, {30, "0"}, {11, "1"}, {21, "0"}, {31, "0"}}) +
-      kEnd;
+      header_mm() + entities() +
+      dxf({{0, "LINE"}, {10, "0"}, {20, "1,5"}, {30, "0"}, {11, "1"}, {21, "0"}, {31, "0"}}) + end_of_file();
   EXPECT_EQ(model_error_message([&] { (void)parse_line_model(bad_number, "model.dxf"); }),
             "model.dxf: line " + std::to_string(line_of(bad_number, "1,5")) + ": group 20: not a finite number: '1,5'");
   // Zero-length LINE.
-  const std::string zero = kHeaderMm + kEntities + good +
-                           dxf({{0, "LINE"}, {10, "5"}, {20, "5"}, {30, "5"}, {11, "5"}, {21, "5"}, {31, "5"}}) + kEnd;
+  const std::string zero = header_mm() + entities() + good +
+                           dxf({{0, "LINE"}, {10, "5"}, {20, "5"}, {30, "5"}, {11, "5"}, {21, "5"}, {31, "5"}}) +
+                           end_of_file();
   EXPECT_EQ(model_error_message([&] { (void)parse_line_model(zero, "model.dxf"); }),
             "model.dxf: line " + std::to_string(line_of(zero, "LINE", 2)) + ": LINE entity #2: zero-length segment");
   // Unknown units.
-  const std::string inches =
-      dxf({{0, "SECTION"}, {2, "HEADER"}, {9, "$INSUNITS"}, {70, "1"}, {0, "ENDSEC"}}) + kEntities + good + kEnd;
+  const std::string inches = dxf({{0, "SECTION"}, {2, "HEADER"}, {9, "$INSUNITS"}, {70, "1"}, {0, "ENDSEC"}}) +
+                             entities() + good + end_of_file();
   EXPECT_EQ(model_error_message([&] { (void)parse_line_model(inches, "model.dxf"); }),
             "model.dxf: line 8: unknown units: $INSUNITS = 1 (supported: 4 = mm, 6 = m, 0 or absent = mm)");
   // Truncated file, bad group code, no segments, binary DXF.
-  EXPECT_EQ(model_error_message([&] { (void)parse_line_model(kHeaderMm + kEntities + good, "model.dxf"); }),
+  EXPECT_EQ(model_error_message([&] { (void)parse_line_model(header_mm() + entities() + good, "model.dxf"); }),
             "model.dxf: line 28: DXF ends early: expected ENDSEC");
-  EXPECT_EQ(model_error_message(
-                [&] { (void)parse_line_model(kHeaderMm + kEntities + "  0\nLINE\nten\n0\n" + kEnd, "model.dxf"); }),
+  EXPECT_EQ(model_error_message([&] {
+              (void)parse_line_model(header_mm() + entities() + "  0\nLINE\nten\n0\n" + end_of_file(), "model.dxf");
+            }),
             "model.dxf: line 17: expected a DXF group code (integer 0..1071), got 'ten'");
   EXPECT_EQ(model_error_message([&] {
-              (void)parse_line_model(kHeaderMm + kEntities + dxf({{0, "CIRCLE"}}) + kEnd, "model.dxf");
+              (void)parse_line_model(header_mm() + entities() + dxf({{0, "CIRCLE"}}) + end_of_file(), "model.dxf");
             }),
             "model.dxf: DXF has no line segments (LINE, POLYLINE or LWPOLYLINE) in ENTITIES");
   EXPECT_EQ(model_error_message([&] {
-              (void)parse_line_model(kHeaderMm + kEntities + good + dxf({{0, "ENDSEC"}}), "model.dxf");
+              (void)parse_line_model(header_mm() + entities() + good + dxf({{0, "ENDSEC"}}), "model.dxf");
             }),
             "model.dxf: DXF has no '0 / EOF' at the end (truncated?)");
   EXPECT_EQ(model_error_message(
                 [&] { (void)parse_line_model(std::string("AutoCAD Binary DXF\r\n\x1a\0", 22), "model.dxf"); }),
             "model.dxf: binary DXF is not supported: save the drawing as ASCII DXF");
-  const std::string lw_no_y = kEntities + dxf({{0, "LWPOLYLINE"}, {10, "0"}, {20, "0"}, {10, "5"}}) + kEnd;
+  const std::string lw_no_y = entities() + dxf({{0, "LWPOLYLINE"}, {10, "0"}, {20, "0"}, {10, "5"}}) + end_of_file();
   EXPECT_EQ(model_error_message([&] { (void)parse_line_model(lw_no_y, "model.dxf"); }),
             "model.dxf: line 11: LWPOLYLINE entity #1: vertex without y (group 20)");
   // Through the file loader: the message names the path.

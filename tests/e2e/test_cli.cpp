@@ -2,12 +2,18 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <map>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <sstream>
 #include <sys/wait.h>
 
+#include "evpipe/camera/camera_model.hpp"
+#include "evpipe/camera/line_model.hpp"
+#include "evpipe/camera/prior.hpp"
+#include "evpipe/camera/trajectory.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe_test_data.hpp"
 
@@ -190,4 +196,223 @@ TEST(Evsim, SameSeedSameBytes) {
   ASSERT_EQ(run(std::string(EVSIM_EXE) + args + q(b)).status, 0);
   EXPECT_EQ(slurp(a), slurp(b));
   EXPECT_FALSE(slurp(a).empty());
+}
+
+TEST(Evpipe, LiveModeWithoutLibcaerSaysSo) {
+  // With the libcaer stub (CI has no libcaer), asking for the camera must fail clearly.
+  if (EVPIPE_REAL_LIBCAER) GTEST_SKIP() << "built against the real libcaer";
+  const auto r = run(kEvpipe + " --speed max");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("libcaer"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--replay"), std::string::npos) << r.err;
+}
+
+// ---- evsim 3D target scenes (docs/simulation.md) ----------------------------------------------------------
+
+namespace {
+
+const std::string kEvsim = EVSIM_EXE;
+std::string config(const std::string& name) { return (evpipe::testing::source_dir() / "config" / name).string(); }
+
+/// Every regular file of a folder, by name.
+std::map<std::string, std::string> files_of(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.is_regular_file()) out[e.path().filename().string()] = slurp(e.path());
+  return out;
+}
+
+/// Lines of a labelled text file that hold events (not '#' comments), and how many carry label 1.
+std::pair<std::size_t, std::size_t> count_text_events(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::size_t n = 0, signal = 0;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    ++n;
+    signal += line.back() == '1' ? 1 : 0;  // fifth column, the label
+  }
+  return {n, signal};
+}
+
+/// "  key: value" of a manifest section (the first match after "section:").
+std::string manifest_value(const std::string& manifest, const std::string& section, const std::string& key) {
+  const auto s = manifest.find("\n" + section + ":\n");
+  if (s == std::string::npos) return "<no section " + section + ">";
+  const std::regex re("\n  " + key + ": ([^\n]*)");
+  std::smatch m;
+  const std::string rest = manifest.substr(s);
+  if (!std::regex_search(rest, m, re)) return "<missing " + key + ">";
+  return m[1];
+}
+
+const std::string k3dArgs = " --camera " + q(config("davis346.yaml")) + " --model " + q(config("target-planar.yaml")) +
+                            " --duration-ms 400 --noise-hz 1 --hot-pixels 2";
+
+}  // namespace
+
+TEST(Evsim, TargetSceneSameSeedSameBytesInEveryFile) {
+  const auto dir = evpipe::testing::temp_dir("e2e-sim3d-det");
+  const auto run_dir = dir / "run";
+  fs::remove_all(run_dir);
+  fs::remove_all(dir / "first");
+  fs::create_directories(run_dir);
+  const std::string outs = " --out " + q((run_dir / "rec.aedat4").string()) + " --labels " +
+                           q((run_dir / "rec.txt").string()) + " --png " + q((run_dir / "rec.png").string()) +
+                           " --png-model";
+  auto r = run(kEvsim + k3dArgs + " --seed 7" + outs);
+  ASSERT_EQ(r.status, 0) << r.err;
+  fs::rename(run_dir, dir / "first");
+  fs::create_directories(run_dir);
+  r = run(kEvsim + k3dArgs + " --seed 7" + outs);
+  ASSERT_EQ(r.status, 0) << r.err;
+
+  const auto a = files_of(dir / "first");
+  const auto b = files_of(run_dir);
+  std::vector<std::string> names;
+  for (const auto& [name, bytes] : a) names.push_back(name);
+  EXPECT_EQ(names, (std::vector<std::string>{"rec.aedat4", "rec.camera.yaml", "rec.gt.csv", "rec.manifest.yaml",
+                                             "rec.model.yaml", "rec.png", "rec.prior.yaml", "rec.txt"}));
+  ASSERT_EQ(a.size(), b.size());
+  for (const auto& [name, bytes] : a) {
+    ASSERT_TRUE(b.count(name)) << name;
+    EXPECT_FALSE(bytes.empty()) << name;
+    EXPECT_TRUE(bytes == b.at(name)) << name << " differs between two runs with the same arguments";
+  }
+  // A different seed changes the events (the test can fail).
+  fs::create_directories(dir / "other");
+  ASSERT_EQ(run(kEvsim + k3dArgs + " --seed 8 --out " + q((dir / "other/rec.aedat4").string())).status, 0);
+  EXPECT_FALSE(slurp(dir / "other/rec.aedat4") == a.at("rec.aedat4"));
+}
+
+TEST(Evsim, TargetSceneOutputsLoadAndAgree) {
+  const auto dir = evpipe::testing::temp_dir("e2e-sim3d-out");
+  const std::string rec = (dir / "rec.aedat4").string();
+  const std::string txt = (dir / "rec.txt").string();
+  auto r = run(kEvsim + k3dArgs + " --seed 7 --out " + q(rec) + " --labels " + q(txt));
+  ASSERT_EQ(r.status, 0) << r.err;
+
+  // Events: evpipe reads the AEDAT4 back, as many as the labelled text holds; the manifest's counts agree.
+  const auto [lines, signal_lines] = count_text_events(txt);
+  ASSERT_GT(signal_lines, 1000U);
+  ASSERT_GT(lines, signal_lines + 10'000U);  // 1 Hz/pixel over 0.4 s: ~36 000 noise events
+  r = run(kEvpipe + " --replay " + q(rec) + " --speed max --json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(field(r.out, "events"), std::to_string(lines));
+  const std::string manifest = slurp(dir / "rec.manifest.yaml");
+  EXPECT_EQ(manifest_value(manifest, "events", "total"), std::to_string(lines));
+  EXPECT_EQ(manifest_value(manifest, "events", "signal"), std::to_string(signal_lines));
+  EXPECT_EQ(manifest_value(manifest, "run", "seed"), "7");
+  EXPECT_EQ(manifest_value(manifest, "evsim", "version"), "\"" + std::string(EVPIPE_VERSION) + "\"");
+  EXPECT_EQ(manifest_value(manifest, "files", "ground_truth"), "\"rec.gt.csv\"");
+  // The only absolute paths are the command line's (files are named relative to the manifest).
+  std::istringstream manifest_lines(manifest);
+  for (std::string line; std::getline(manifest_lines, line);) {
+    if (line.rfind("  command:", 0) != 0) {
+      EXPECT_EQ(line.find(dir.string()), std::string::npos) << line;
+    }
+  }
+
+  // Ground truth: >= 1 kHz over the whole recording, read by the camera library.
+  const auto gt = evpipe::camera::read_trajectory_csv((dir / "rec.gt.csv").string());
+  ASSERT_EQ(gt.size(), 401U);
+  EXPECT_EQ(gt.front().t_us, 0);
+  EXPECT_EQ(gt.back().t_us, 400'000);
+  for (std::size_t i = 1; i < gt.size(); ++i) {
+    ASSERT_LE(gt[i].t_us - gt[i - 1].t_us, 1000) << i;
+  }
+
+  // Camera and model: what was given, through the evpipe YAML writers.
+  EXPECT_EQ(evpipe::camera::load_camera((dir / "rec.camera.yaml").string()),
+            evpipe::camera::load_camera(config("davis346.yaml")));
+  const auto model = evpipe::camera::load_line_model((dir / "rec.model.yaml").string());
+  const auto original = evpipe::camera::load_line_model(config("target-planar.yaml"));
+  EXPECT_EQ(model.name, original.name);
+  EXPECT_EQ(model.segments_m, original.segments_m);
+
+  // Prior: the first ground-truth pose, 0.05 m and 10 degrees off, tolerances 0.3 m and 45 degrees.
+  const auto prior = evpipe::camera::load_prior((dir / "rec.prior.yaml").string());
+  EXPECT_NEAR(evpipe::camera::translation_distance_m(prior.pose, gt.front().pose), 0.05, 2e-6);
+  EXPECT_NEAR(evpipe::camera::rotation_angle_deg(prior.pose, gt.front().pose), 10.0, 1e-4);
+  EXPECT_EQ(prior.position_tolerance_m, 0.3);
+  EXPECT_EQ(prior.angle_tolerance_deg, 45.0);
+}
+
+TEST(Evsim, TrajectoryInputReproducesTheGeneratedScene) {
+  // Rendering from the ground truth of a generated scene, with the same seed, gives the same events: the
+  // ground-truth file is exactly the motion that made them.
+  const auto dir = evpipe::testing::temp_dir("e2e-sim3d-traj");
+  const std::string a = (dir / "a.aedat4").string();
+  const std::string b = (dir / "b.aedat4").string();
+  ASSERT_EQ(run(kEvsim + k3dArgs + " --seed 7 --out " + q(a)).status, 0);
+  const auto r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " +
+                     q(config("target-planar.yaml")) + " --noise-hz 1 --hot-pixels 2 --seed 7 --trajectory " +
+                     q((dir / "a.gt.csv").string()) + " --out " + q(b));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(slurp(dir / "b.gt.csv") == slurp(dir / "a.gt.csv"));
+  EXPECT_TRUE(slurp(b) == slurp(a));
+  EXPECT_EQ(slurp(dir / "b.prior.yaml"), slurp(dir / "a.prior.yaml"));
+
+  // A sparse trajectory (10 Hz) is densified to 1 kHz, keeping its rows.
+  const std::string sparse = (dir / "sparse.csv").string();
+  std::ofstream(sparse) << "t_us,x_m,y_m,z_m,qw,qx,qy,qz\n"
+                           "1000000,0,0,0.8,1,0,0,0\n"
+                           "1100000,0.01,0,0.8,1,0,0,0\n"
+                           "1200000,0.01,0.01,0.85,0.9998477,0.0174524,0,0\n";
+  const std::string c = (dir / "c.aedat4").string();
+  ASSERT_EQ(run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(config("target-planar.yaml")) +
+                " --noise-hz 0 --trajectory " + q(sparse) + " --out " + q(c))
+                .status,
+            0);
+  const auto gt = evpipe::camera::read_trajectory_csv((dir / "c.gt.csv").string());
+  ASSERT_EQ(gt.size(), 201U);
+  EXPECT_EQ(gt[100].t_us, 1'100'000);
+  EXPECT_EQ(gt[100].pose.t_cam_model_m, Eigen::Vector3d(0.01, 0, 0.8));
+  const auto events = evpipe::io::read_all(c).events;
+  ASSERT_FALSE(events.empty());
+  EXPECT_GE(events.front().t_us, 1'000'000);
+  EXPECT_LT(events.back().t_us, 1'200'000);
+}
+
+TEST(Evsim, RoadheaderDxfAndPureNoise) {
+  const auto dir = evpipe::testing::temp_dir("e2e-sim3d-dxf");
+  const std::string rec = (dir / "rh.aedat4").string();
+  auto r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(config("roadheader-wireframe.dxf")) +
+               " --distance-m 1.0 --duration-ms 200 --noise-hz 0 --out " + q(rec));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(evpipe::camera::load_line_model((dir / "rh.model.yaml").string()).segments_m,
+            evpipe::camera::load_line_model(config("roadheader-wireframe.dxf")).segments_m);
+  const auto manifest = slurp(dir / "rh.manifest.yaml");
+  EXPECT_EQ(manifest_value(manifest, "target3d", "orientation_source"), "\"default: front-left three-quarter\"");
+  EXPECT_EQ(manifest_value(manifest, "events", "noise"), "0");
+  EXPECT_GT(evpipe::io::read_all(rec).events.size(), 5000U);
+
+  const std::string noise = (dir / "noise.txt").string();
+  r = run(kEvsim + " --pure-noise 3000 --seed 4 --out " + q(noise));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto ev = evpipe::io::read_all(noise).events;
+  ASSERT_EQ(ev.size(), 3000U);
+  EXPECT_GE(ev.front().t_us, 0);
+  EXPECT_LT(ev.back().t_us, 30'000);
+}
+
+TEST(Evsim, UsageErrorsExitTwo) {
+  const auto dir = evpipe::testing::temp_dir("e2e-sim-usage");
+  const std::string out = " --out " + q((dir / "x.aedat4").string());
+  auto r = run(kEvsim + " --model " + q(config("target-planar.yaml")) + out);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--camera"), std::string::npos) << r.err;
+  r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(config("target-planar.yaml")) +
+          " --trajectory x.csv --distance-m 1" + out);
+  EXPECT_EQ(r.status, 2);
+  r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(config("target-planar.yaml")) +
+          " --orientation 1,0,0" + out);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--orientation"), std::string::npos) << r.err;
+  // A bad model file is an input error (1) naming the file.
+  const std::string bad = (dir / "bad.yaml").string();
+  std::ofstream(bad) << "model:\n  units: cm\n  lines: [[0, 0, 0, 1, 0, 0]]\n";
+  r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(bad) + out);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("model.units"), std::string::npos) << r.err;
 }

@@ -12,7 +12,9 @@
 
 namespace evpipe::fuzz {
 
-[[noreturn]] inline void invariant_broken() { __builtin_trap(); }
+[[noreturn]] inline void invariant_broken() {
+  __builtin_trap();
+}
 
 template <typename Make>
 int run_reader(Make make, const std::uint8_t* data, std::size_t size) {
@@ -25,8 +27,8 @@ int run_reader(Make make, const std::uint8_t* data, std::size_t size) {
   options.aedat2_flip_y = (size & 4) == 0;
   options.discontinuity_us = (size & 8) != 0 ? 1'000 : 1'000'000;
   try {
-    auto reader = make(io::memory_source(std::span(reinterpret_cast<const std::byte*>(data), size), "fuzz-input"),
-                       options);
+    auto reader =
+        make(io::memory_source(std::span(reinterpret_cast<const std::byte*>(data), size), "fuzz-input"), options);
     const SensorGeometry g = reader->info().geometry;
     std::uint64_t events = 0;
     std::optional<std::int64_t> last_t;

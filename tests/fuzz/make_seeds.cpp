@@ -64,8 +64,8 @@ std::string load(const fs::path& path, std::size_t max_bytes) {
 
 /// A jAER file: header lines (CRLF or LF), DVS words, IMU/APS/special words, a 2^31 wrap.
 std::string aedat2_file(const char* chip, const char* eol, bool wrap, bool partial_tail) {
-  std::string s = std::string("#!AER-DAT2.0") + eol + "# This is a raw AE data file" + eol + "# AEChip: " + chip +
-                  eol + "#End Of ASCII Header" + eol;
+  std::string s = std::string("#!AER-DAT2.0") + eol + "# This is a raw AE data file" + eol + "# AEChip: " + chip + eol +
+                  "#End Of ASCII Header" + eol;
   std::int32_t ts = wrap ? INT32_MAX - 40 : 1000;
   for (std::uint32_t i = 0; i < 40; ++i) {
     const std::uint32_t x = (i * 37) % 240;
@@ -122,8 +122,8 @@ int main(int argc, char** argv) {
     evpipe::io::WriterOptions small = o;
     small.geometry = {17, 9};
     small.compression = "none";
-    write_with(out / "aedat4" / "writer-17x9.aedat4", Format::aedat4,
-               synthetic_events(20, small.geometry, 0, 5), small);
+    write_with(out / "aedat4" / "writer-17x9.aedat4", Format::aedat4, synthetic_events(20, small.geometry, 0, 5),
+               small);
 
     // AEDAT 3.1: times across 2^31 (the overflow counter changes), and a 240x180 file.
     o.compression = "lz4";
@@ -131,8 +131,7 @@ int main(int argc, char** argv) {
                synthetic_events(60, evpipe::kDavis346, (std::int64_t{1} << 31) - 200, 10), o);
     evpipe::io::WriterOptions o240 = o;
     o240.geometry = evpipe::kDavis240;
-    write_with(out / "aedat31" / "writer-240.aedat", Format::aedat31, synthetic_events(30, o240.geometry, 5, 3),
-               o240);
+    write_with(out / "aedat31" / "writer-240.aedat", Format::aedat31, synthetic_events(30, o240.geometry, 5, 3), o240);
     save(out / "aedat31" / "header-only.aedat",
          "#!AER-DAT3.1\r\n#Format: RAW\r\n#Source 1: DAVIS346\r\n#Start-Time: 2020-01-01 00:00:00 (TZ+0000)\r\n"
          "#!END-HEADER\r\n");
@@ -140,8 +139,8 @@ int main(int argc, char** argv) {
     // Text: labelled and unlabelled writer output, plus the hand-written variants of the contract.
     std::vector<Label> labels;
     for (std::size_t i = 0; i < 30; ++i) labels.push_back(i % 3 == 0 ? Label::noise : Label::signal);
-    write_with(out / "text" / "writer-labelled.txt", Format::text, synthetic_events(30, evpipe::kDavis346, 100, 9),
-               o, labels);
+    write_with(out / "text" / "writer-labelled.txt", Format::text, synthetic_events(30, evpipe::kDavis346, 100, 9), o,
+               labels);
     write_with(out / "text" / "writer-plain.txt", Format::text, synthetic_events(30, evpipe::kDavis240, 1, 2), o240);
     save(out / "text" / "seconds.txt",
          "# seconds, commas, tabs, -1/1 polarity\n1645793388.095964,1,2,-1\n1645793388.1\t3\t4\t1\n"
@@ -149,9 +148,12 @@ int main(int argc, char** argv) {
     save(out / "text" / "height-width.txt", "180 240\r\n1645793388095964  96 133 0\r\n1645793388095973 127 171 1\r\n");
 
     // AEDAT 2.0 (evpipe has no 2.0 writer): hand-built files.
-    save(out / "aedat2" / "davis240-crlf.aedat", aedat2_file("eu.seebetter.ini.chips.davis.DAVIS240C", "\r\n", false, false));
-    save(out / "aedat2" / "davis346-lf-wrap.aedat", aedat2_file("eu.seebetter.ini.chips.davis.Davis346red", "\n", true, true));
-    save(out / "aedat2" / "unknown-chip.aedat", aedat2_file("ch.unizh.ini.jaer.chip.retina.DVS128", "\r\n", false, false));
+    save(out / "aedat2" / "davis240-crlf.aedat",
+         aedat2_file("eu.seebetter.ini.chips.davis.DAVIS240C", "\r\n", false, false));
+    save(out / "aedat2" / "davis346-lf-wrap.aedat",
+         aedat2_file("eu.seebetter.ini.chips.davis.Davis346red", "\n", true, true));
+    save(out / "aedat2" / "unknown-chip.aedat",
+         aedat2_file("ch.unizh.ini.jaer.chip.retina.DVS128", "\r\n", false, false));
 
     // Crops of the real recordings, when present.
     if (argc >= 3 && fs::is_directory(argv[2])) {

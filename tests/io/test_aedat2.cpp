@@ -128,9 +128,27 @@ TEST(Aedat2Real, CutsOfARealFileNeverCrash) {
   const Bytes all = read_bytes(path);
   ASSERT_EQ(all.size(), 1'748'132u);
   const std::size_t header_bytes = all.size() - 1'572'864;  // exactly 1.5 MiB of words after the header
-  std::vector<std::size_t> cuts = {0, 1, 5, 11, 12, 13, 14, 100, 4095, 4096, 4097, 65535, 65536, 65537,
-                                   header_bytes - 1, header_bytes, header_bytes + 1, header_bytes + 7,
-                                   header_bytes + 8, header_bytes + 8 * 1000 + 3, all.size() - 1};
+  std::vector<std::size_t> cuts = {0,
+                                   1,
+                                   5,
+                                   11,
+                                   12,
+                                   13,
+                                   14,
+                                   100,
+                                   4095,
+                                   4096,
+                                   4097,
+                                   65535,
+                                   65536,
+                                   65537,
+                                   header_bytes - 1,
+                                   header_bytes,
+                                   header_bytes + 1,
+                                   header_bytes + 7,
+                                   header_bytes + 8,
+                                   header_bytes + 8'003,
+                                   all.size() - 1};
   for (std::size_t cut = 0; cut < header_bytes; cut += 9973) cuts.push_back(cut);
   for (const std::size_t cut : cuts) {
     SCOPED_TRACE("cut at " + std::to_string(cut));
@@ -226,8 +244,8 @@ TEST(Aedat2, FirstRecordStartingWithHashIsDataNotHeader) {
 }
 
 TEST(Aedat2, BatchesHoldAtMostBatchEvents) {
-  std::vector<Rec> recs;
-  for (int i = 0; i < 10; ++i) recs.push_back({dvs(1, 1, true), i});
+  std::vector<Rec> recs(10);
+  for (int i = 0; i < 10; ++i) recs[static_cast<std::size_t>(i)] = {dvs(1, 1, true), i};
   ReaderOptions o;
   o.batch_events = 3;
   auto r = make_aedat2_reader(io::memory_source(file(header(), recs)), o);
@@ -291,7 +309,8 @@ TEST(Aedat2, EventOutsideTheSensorNamesItsByteOffset) {
   auto err = read_error(make_aedat2_reader, data, {}, "out.aedat");
   ASSERT_TRUE(err);
   EXPECT_EQ(err->offset(), hdr.size() + 16);
-  EXPECT_NE(std::string(err->what()).find("byte " + std::to_string(hdr.size() + 16) + ":"), std::string::npos) << err->what();
+  EXPECT_NE(std::string(err->what()).find("byte " + std::to_string(hdr.size() + 16) + ":"), std::string::npos)
+      << err->what();
   EXPECT_NE(std::string(err->what()).find("x=240"), std::string::npos) << err->what();
   EXPECT_NE(std::string(err->what()).find("out.aedat"), std::string::npos);
 
@@ -302,8 +321,8 @@ TEST(Aedat2, EventOutsideTheSensorNamesItsByteOffset) {
 }
 
 TEST(Aedat2, OutOfOrderTimestampsAreDroppedOrKeptAndCounted) {
-  const Bytes data = file(header(), {{dvs(1, 1, true), 100}, {dvs(1, 1, true), 200}, {dvs(2, 2, true), 150},
-                                     {dvs(3, 3, true), 300}});
+  const Bytes data =
+      file(header(), {{dvs(1, 1, true), 100}, {dvs(1, 1, true), 200}, {dvs(2, 2, true), 150}, {dvs(3, 3, true), 300}});
   WarningLog log;
   auto dropped = make_aedat2_reader(io::memory_source(data), log.attach());
   const auto d = drain(*dropped);
@@ -366,8 +385,8 @@ TEST(Aedat2, ThirtyTwoBitTimestampWrapIsUnwrapped) {
   auto r = make_aedat2_reader(io::memory_source(data), {});
   const auto d = drain(*r);
   ASSERT_EQ(d.events.size(), 8u);
-  const std::vector<std::int64_t> expected = {k31 - 10, k31 - 1, k31, k31 + 5, 2 * k31 - 1, 2 * k31,
-                                              3 * k31 - 1, 3 * k31};
+  const std::vector<std::int64_t> expected = {k31 - 10,    k31 - 1, k31,         k31 + 5,
+                                              2 * k31 - 1, 2 * k31, 3 * k31 - 1, 3 * k31};
   for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(d.events[i].t_us, expected[i]) << i;
   EXPECT_EQ(r->stats().discontinuities, 0u);
   EXPECT_EQ(r->stats().out_of_order, 0u);

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <string_view>
 
 #include "evpipe/io/reader.hpp"
 #include "evpipe/io/writer.hpp"
@@ -23,7 +24,7 @@ using io::ReaderOptions;
 
 constexpr std::int64_t k31 = std::int64_t{1} << 31;
 
-const std::string kHeader =
+constexpr std::string_view kHeader =
     "#!AER-DAT3.1\r\n#Format: RAW\r\n#Source 1: DAVIS346\r\n#Start-Time: 2024-01-01 00:00:00 (TZ+0000)\r\n"
     "#!END-HEADER\r\n";
 
@@ -32,15 +33,17 @@ struct Packet {
   std::int32_t event_size = 8;
   std::int32_t ts_offset = 4;
   std::int32_t overflow = 0;
-  std::int32_t capacity = -1;  // -1: = number
-  std::int32_t number = -1;    // -1: = words.size() / 2
+  std::int32_t capacity = -1;        // -1: = number
+  std::int32_t number = -1;          // -1: = words.size() / 2
   std::vector<std::uint32_t> words;  // payload as LE uint32 words
 };
 
 std::uint32_t pol(std::uint32_t x, std::uint32_t y, bool on, bool valid = true) {
   return (valid ? 1u : 0u) | (on ? 2u : 0u) | (y << 2) | (x << 17);
 }
-std::uint32_t special(std::uint32_t type) { return 1u | (type << 1); }
+std::uint32_t special(std::uint32_t type) {
+  return 1u | (type << 1);
+}
 
 void add_packet(Bytes& out, const Packet& p) {
   const auto n = p.number >= 0 ? p.number : static_cast<std::int32_t>(p.words.size() / 2);
@@ -55,7 +58,7 @@ void add_packet(Bytes& out, const Packet& p) {
   for (const auto w : p.words) put_le32(out, w);
 }
 
-Bytes file(const std::vector<Packet>& packets, const std::string& hdr = kHeader) {
+Bytes file(const std::vector<Packet>& packets, std::string_view hdr = kHeader) {
   Bytes out = bytes_of(hdr);
   for (const auto& p : packets) add_packet(out, p);
   return out;
@@ -81,8 +84,8 @@ std::vector<Event> random_events(std::size_t n, SensorGeometry g, std::int64_t t
   return ev;
 }
 
-std::string write_file(const std::string& name, const std::vector<Event>& events, io::WriterOptions o) {
-  const auto path = (temp_dir("aedat31") / name).string();
+std::string write_file(const std::string& name, const std::vector<Event>& events, const io::WriterOptions& o) {
+  auto path = (temp_dir("aedat31") / name).string();
   auto w = io::open_writer(path, io::Format::aedat31, o);
   // Several write() calls, to cross call boundaries inside packets.
   const std::size_t half = events.size() / 2;
@@ -127,10 +130,10 @@ TEST(Aedat31RoundTrip, EventsPastTwoToThe31AreIdentical) {
     ASSERT_LE(pos + 28, raw.size());
     std::int32_t f[7];
     std::memcpy(f, raw.data() + pos + 4, sizeof f);
-    EXPECT_EQ(f[0], 8);        // eventSize
-    EXPECT_EQ(f[1], 4);        // eventTSOffset
-    EXPECT_EQ(f[3], f[4]);     // capacity == number
-    EXPECT_EQ(f[5], f[4]);     // all valid
+    EXPECT_EQ(f[0], 8);     // eventSize
+    EXPECT_EQ(f[1], 4);     // eventTSOffset
+    EXPECT_EQ(f[3], f[4]);  // capacity == number
+    EXPECT_EQ(f[5], f[4]);  // all valid
     EXPECT_LE(f[4], 97);
     EXPECT_GE(f[2], last_overflow);
     if (f[2] != last_overflow) ++overflow_changes;
@@ -159,8 +162,8 @@ TEST(Aedat31RoundTrip, GeometryTravelsInTheSourceLine) {
 }
 
 TEST(Aedat31RoundTrip, NegativeAndHugeTimestamps) {
-  std::vector<Event> events = {{-5 * k31 - 3, 1, 2, true}, {-1, 3, 4, false}, {0, 5, 6, true},
-                               {(std::int64_t{1} << 61) + 12345, 7, 8, false}};
+  std::vector<Event> events = {
+      {-5 * k31 - 3, 1, 2, true}, {-1, 3, 4, false}, {0, 5, 6, true}, {(std::int64_t{1} << 61) + 12345, 7, 8, false}};
   io::WriterOptions wo;
   ReaderOptions ro;
   ro.out_of_order = io::OutOfOrderPolicy::keep;
@@ -262,8 +265,8 @@ TEST(Aedat31, TimestampResetSpecialEventIsADiscontinuity) {
 
 TEST(Aedat31, OutOfOrderAndBackwardJumpsFollowThePolicy) {
   Packet p;
-  p.words = {pol(1, 1, true), 100, pol(1, 1, true), 200, pol(1, 1, true), 150, pol(1, 1, true), 300,
-             pol(1, 1, true), 2'000'000, pol(1, 1, true), 5};
+  p.words = {pol(1, 1, true), 100, pol(1, 1, true), 200,       pol(1, 1, true), 150,
+             pol(1, 1, true), 300, pol(1, 1, true), 2'000'000, pol(1, 1, true), 5};
   auto dropped = make_aedat31_reader(io::memory_source(file({p})), {});
   const auto d = drain(*dropped);
   ASSERT_EQ(d.events.size(), 5u);

@@ -646,5 +646,26 @@ TEST_F(Aedat4Files, ProgressAdvances) {
   EXPECT_EQ(reader->progress(), 1.0);
 }
 
+TEST_F(Aedat4Files, ShortPacketWithoutStreamTableIsSkippedSafely) {
+  // Regression (found by fuzz_aedat4): with no stream table, a packet shorter than 12 bytes was probed
+  // for its identifier at bytes 8..11, reading past the buffer (ASan heap-buffer-overflow).
+  WriterOptions w;
+  w.compression = "none";
+  const auto events = synthetic_events(100);
+  Bytes b = write(events, w, false, "short.aedat4");  // no data table: packets run to EOF
+  ASSERT_TRUE(patch_text(b, "<node name=\"0\"", "<node name=\"x\""));
+  for (const std::uint32_t size : {8u, 9u, 10u, 11u}) {
+    Bytes c = b;
+    const std::size_t at = c.size();
+    c.resize(at + 8 + size);
+    put<std::int32_t>(c, at, 0);                       // stream 0
+    put<std::int32_t>(c, at + 4, static_cast<std::int32_t>(size));
+    put<std::uint32_t>(c, at + 8, size - 4);            // a consistent size prefix
+    const Decoded d = decode_bytes(c);
+    EXPECT_EQ(d.events, events) << "size " << size;
+    EXPECT_EQ(d.stats.skipped_non_dvs, 1u) << "size " << size;
+  }
+}
+
 }  // namespace
 }  // namespace evpipe::io

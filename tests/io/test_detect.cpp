@@ -32,23 +32,23 @@ TEST_P(DetectReal, FirstBytesGiveTheFormat) {
   EXPECT_EQ(detect(read_bytes(path), &why), GetParam().format) << why;
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Recordings, DetectReal,
-    ::testing::Values(RealFile{"davis240c-rotdisk/IMU_rotDisk.aedat", Format::aedat2},
-                      RealFile{"davis240c-translboxes/IMU_translBoxes.aedat", Format::aedat2},
-                      RealFile{"davis346red-aedat2-header/sample_aedat_header.aedat", Format::aedat2},
-                      RealFile{"davis240-text-taro/test-02.txt", Format::text},
-                      RealFile{"davis346-faery/davis346.aedat4", Format::aedat4},
-                      RealFile{"davis346-faery-trimmed/sample.aedat4", Format::aedat4},
-                      RealFile{"emlb-demo-01/demo-01.aedat4", Format::aedat4},
-                      RealFile{"dvxplorer-tonic/sample.aedat4", Format::aedat4}),
-    [](const auto& param_info) {
-      std::string name = param_info.param.rel;
-      name = name.substr(0, name.find('/'));
-      for (char& c : name)
-        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-      return name;
-    });
+INSTANTIATE_TEST_SUITE_P(Recordings, DetectReal,
+                         ::testing::Values(RealFile{"davis240c-rotdisk/IMU_rotDisk.aedat", Format::aedat2},
+                                           RealFile{"davis240c-translboxes/IMU_translBoxes.aedat", Format::aedat2},
+                                           RealFile{"davis346red-aedat2-header/sample_aedat_header.aedat",
+                                                    Format::aedat2},
+                                           RealFile{"davis240-text-taro/test-02.txt", Format::text},
+                                           RealFile{"davis346-faery/davis346.aedat4", Format::aedat4},
+                                           RealFile{"davis346-faery-trimmed/sample.aedat4", Format::aedat4},
+                                           RealFile{"emlb-demo-01/demo-01.aedat4", Format::aedat4},
+                                           RealFile{"dvxplorer-tonic/sample.aedat4", Format::aedat4}),
+                         [](const auto& param_info) {
+                           std::string name = param_info.param.rel;
+                           name = name.substr(0, name.find('/'));
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
 
 struct Foreign {
   const char* rel;
@@ -73,19 +73,18 @@ TEST_P(DetectForeign, IsUnknownWithAReasonAndOpenReaderNamesTheFile) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Recordings, DetectForeign,
-    ::testing::Values(Foreign{"prophesee-evt2-gen3/evt2.raw", "Prophesee RAW EVT 2.0"},
-                      Foreign{"prophesee-evt3-imx636/evt3.raw", "Prophesee RAW EVT 3.0"},
-                      Foreign{"atis-ncars-tonic/sample_ncars.dat", "Prophesee DAT"},
-                      Foreign{"atis-nmnist-tonic/sample_nmnist.bin", "binary data"}),
-    [](const auto& param_info) {
-      std::string name = param_info.param.rel;
-      name = name.substr(0, name.find('/'));
-      for (char& c : name)
-        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-      return name;
-    });
+INSTANTIATE_TEST_SUITE_P(Recordings, DetectForeign,
+                         ::testing::Values(Foreign{"prophesee-evt2-gen3/evt2.raw", "Prophesee RAW EVT 2.0"},
+                                           Foreign{"prophesee-evt3-imx636/evt3.raw", "Prophesee RAW EVT 3.0"},
+                                           Foreign{"atis-ncars-tonic/sample_ncars.dat", "Prophesee DAT"},
+                                           Foreign{"atis-nmnist-tonic/sample_nmnist.bin", "binary data"}),
+                         [](const auto& param_info) {
+                           std::string name = param_info.param.rel;
+                           name = name.substr(0, name.find('/'));
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
 
 TEST(Detect, SyntheticHeads) {
   std::string why;

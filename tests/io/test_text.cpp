@@ -135,7 +135,7 @@ TEST(Text, SecondsAreParsedExactly) {
   const auto d = read(
       "1645793388.095964 1 1 1\n"
       "1645793388.1 1 1 1\n"
-      "1645793389 1 1 1\n"          // integer in a seconds file: whole seconds
+      "1645793389 1 1 1\n"             // integer in a seconds file: whole seconds
       "1645793389.0000004999 1 1 1\n"  // > 6 digits: rounded to the nearest microsecond
       "1645793389.0000005 1 1 1\n"     // half: away from zero
       "1645793389.9999996 1 1 1\n"     // rounds up into the next second
@@ -227,9 +227,9 @@ TEST(Text, OutOfOrderAndDiscontinuities) {
 
 TEST(Text, ExtremeTimestampsAreHandledWithoutOverflow) {
   WarningLog log;
-  auto r = make_text_reader(
-      io::memory_source(bytes_of("9223372036854775807 1 1 1\n-9223372036854775808 1 1 1\n-9223372036854775807 1 1 0\n")),
-      log.attach());
+  auto r = make_text_reader(io::memory_source(bytes_of(
+                                "9223372036854775807 1 1 1\n-9223372036854775808 1 1 1\n-9223372036854775807 1 1 0\n")),
+                            log.attach());
   const auto d = drain(*r);
   ASSERT_EQ(d.events.size(), 3u);
   EXPECT_EQ(d.events[0].t_us, INT64_MAX);
@@ -265,7 +265,7 @@ TEST(TextWriter, RoundTripWithAndWithoutLabels) {
   std::vector<Event> events;
   std::vector<Label> labels;
   for (int i = 0; i < 3000; ++i) {
-    events.push_back({1'645'793'388'095'964 + i * 3, static_cast<std::uint16_t>(i % 346),
+    events.push_back({1'645'793'388'095'964 + std::int64_t{i} * 3, static_cast<std::uint16_t>(i % 346),
                       static_cast<std::uint16_t>((i * 7) % 260), (i % 3) == 0});
     labels.push_back(i % 5 == 0 ? Label::noise : Label::signal);
   }

@@ -70,15 +70,17 @@ CameraModel parse_evpipe_yaml(const YAML::Node& root, const std::string& file) {
 
 // ---- OpenCV FileStorage ----------------------------------------------------------------------------------
 
-cv::FileNode find_calibration_root(const cv::FileStorage& fs) {
+cv::FileNode find_calibration_root(const cv::FileStorage& fs, const std::string& file) {
   cv::FileNode root = fs.root();
+  // FileNode::operator[] asserts on a non-map: check first.
+  if (!root.isMap()) {
+    throw ModelError(file, "", "expected a map with camera_matrix, distortion_coefficients, image_width, image_height");
+  }
   if (!root["camera_matrix"].empty()) return root;
   // Some tools nest the calibration one level down (e.g. under the camera's name).
-  if (root.isMap()) {
-    for (auto it = root.begin(); it != root.end(); ++it) {
-      const cv::FileNode child = *it;
-      if (child.isMap() && !child["camera_matrix"].empty()) return child;
-    }
+  for (auto it = root.begin(); it != root.end(); ++it) {
+    const cv::FileNode child = *it;
+    if (child.isMap() && !child["camera_matrix"].empty()) return child;
   }
   return root;
 }
@@ -86,6 +88,22 @@ cv::FileNode find_calibration_root(const cv::FileStorage& fs) {
 cv::Mat read_matrix(const cv::FileNode& parent, const char* key, const std::string& file) {
   const cv::FileNode node = parent[key];
   if (node.empty()) throw ModelError(file, key, "missing");
+  if (node.isMap()) {
+    // OpenCV allocates rows x cols before it checks the data against them: check the sizes first, so that a
+    // small file cannot ask for gigabytes. A calibration matrix is at most 3x3, a coefficient vector 1x14.
+    constexpr int kMaxSide = 16;
+    const cv::FileNode rows = node["rows"];
+    const cv::FileNode cols = node["cols"];
+    const cv::FileNode data = node["data"];
+    if (!rows.isInt() || !cols.isInt() || static_cast<int>(rows) < 1 || static_cast<int>(cols) < 1 ||
+        static_cast<int>(rows) > kMaxSide || static_cast<int>(cols) > kMaxSide) {
+      throw ModelError(file, key, fmt::format("opencv-matrix needs integer rows and cols in 1..{}", kMaxSide));
+    }
+    const std::size_t elements = static_cast<std::size_t>(static_cast<int>(rows)) * static_cast<int>(cols);
+    if (!data.isSeq() || data.size() != elements) {
+      throw ModelError(file, key, fmt::format("opencv-matrix data must hold rows x cols = {} numbers", elements));
+    }
+  }
   cv::Mat m;
   try {
     node >> m;
@@ -120,17 +138,8 @@ long long read_int(const cv::FileNode& parent, const char* key, const std::strin
   throw ModelError(file, key, "must be an integer");
 }
 
-CameraModel parse_filestorage(std::string_view text, const std::string& file) {
-  cv::FileStorage fs;
-  try {
-    // MEMORY: the text is the content, not a file name (we already read it, with a size cap).
-    if (!fs.open(std::string(detail::strip_bom(text)), cv::FileStorage::READ | cv::FileStorage::MEMORY)) {
-      throw ModelError(file, "", "OpenCV FileStorage could not parse the file");
-    }
-  } catch (const cv::Exception& e) {
-    throw ModelError(file, "", fmt::format("OpenCV FileStorage could not parse the file: {}", e.err));
-  }
-  const cv::FileNode root = find_calibration_root(fs);
+CameraModel read_filestorage(const cv::FileStorage& fs, const std::string& file) {
+  const cv::FileNode root = find_calibration_root(fs, file);
 
   CameraModel cam;
   const cv::Mat K = read_matrix(root, "camera_matrix", file);
@@ -177,6 +186,72 @@ CameraModel parse_filestorage(std::string_view text, const std::string& file) {
   cam.width = static_cast<int>(width);
   cam.height = static_cast<int>(height);
   return cam;
+}
+
+/// OpenCV 4.6's XML parser reads through a null pointer when the text ends inside a tag after an attribute's
+/// '=' (e.g. a file truncated at `<camera_matrix type_id=`): found by tests/camera/test_robustness.cpp. Refuse
+/// such text before OpenCV sees it: the document must end with the closing root tag, and inside tags every
+/// '=' must be followed (after spaces) by a quote.
+void check_xml_before_opencv(std::string_view text, const std::string& file) {
+  if (!detail::trim(text).ends_with("</opencv_storage>")) {
+    throw ModelError(file, "", "XML FileStorage does not end with </opencv_storage> (truncated?)");
+  }
+  bool in_tag = false;
+  char quote = 0;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quote != 0) {
+      if (c == quote) quote = 0;
+    } else if (!in_tag) {
+      if (c == '<') {
+        if (text.substr(i).starts_with("<!--")) {  // skip comments: they may contain anything
+          const auto end = text.find("-->", i + 4);
+          if (end == std::string_view::npos) throw ModelError(file, "", "XML comment without -->");
+          i = end + 2;
+        } else {
+          in_tag = true;
+        }
+      }
+    } else if (c == '>') {
+      in_tag = false;
+    } else if (c == '"' || c == '\'') {
+      quote = c;
+    } else if (c == '=') {
+      std::size_t j = i + 1;
+      while (j < text.size() && (text[j] == ' ' || text[j] == '\t' || text[j] == '\r' || text[j] == '\n')) ++j;
+      if (j >= text.size() || (text[j] != '"' && text[j] != '\'')) {
+        throw ModelError(file, "", "XML attribute value not in quotes");
+      }
+    }
+  }
+  if (in_tag || quote != 0) throw ModelError(file, "", "XML ends inside a tag");
+}
+
+CameraModel parse_filestorage(std::string_view text, const std::string& file) {
+  if (detail::trim(detail::strip_bom(text)).starts_with("<")) check_xml_before_opencv(detail::strip_bom(text), file);
+  cv::FileStorage fs;
+  try {
+    // MEMORY: the text is the content, not a file name (we already read it, with a size cap).
+    if (!fs.open(std::string(detail::strip_bom(text)), cv::FileStorage::READ | cv::FileStorage::MEMORY)) {
+      throw ModelError(file, "", "OpenCV FileStorage could not parse the file");
+    }
+  } catch (const ModelError&) {
+    throw;
+  } catch (const cv::Exception& e) {
+    throw ModelError(file, "", fmt::format("OpenCV FileStorage could not parse the file: {}", e.err));
+  } catch (const std::exception& e) {  // OpenCV 4.6's parser can throw std::length_error on malformed keys
+    throw ModelError(file, "", fmt::format("OpenCV FileStorage could not parse the file: {}", e.what()));
+  }
+  try {
+    return read_filestorage(fs, file);
+  } catch (const ModelError&) {
+    throw;
+  } catch (const cv::Exception& e) {
+    // OpenCV asserts on shapes it did not expect (a scalar where a map should be, ...).
+    throw ModelError(file, "", fmt::format("OpenCV FileStorage: {}", e.err));
+  } catch (const std::exception& e) {
+    throw ModelError(file, "", fmt::format("OpenCV FileStorage: {}", e.what()));
+  }
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ constexpr std::size_t kMaxYamlModelBytes = 4u << 20;  // yaml-cpp needs ~100x th
 double units_per_metre(const YAML::Node& units, const std::string& file) {
   if (!units) throw ModelError(file, "model.units", "missing (mm or m)");
   if (!units.IsScalar()) throw ModelError(file, "model.units", "must be mm or m");
-  const std::string u = units.Scalar();
+  const std::string& u = units.Scalar();
   if (u == "mm") return 1000.0;
   if (u == "m") return 1.0;
   throw ModelError(file, "model.units", fmt::format("unknown units '{}' (expected mm or m)", detail::excerpt(u)));

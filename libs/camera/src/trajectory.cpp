@@ -146,7 +146,34 @@ std::vector<StampedPose> read_trajectory_csv(const std::string& path) {
   return out;
 }
 
-TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, std::vector<std::string> extra_columns)
+namespace {
+
+/// "qw,qx,qy,qz" with 9 decimals. read_trajectory_csv() normalises the quaternion it parses, and the rounding to 9
+/// decimals leaves a norm of 1 +- 2e-9, so a row read back and written again could change in the last digit.
+/// Iterate to a text whose read-back prints as the same text: then write -> read -> write is byte-identical
+/// (evsim renders from its ground truth read back, and a trajectory fed back in reproduces the file).
+std::string quaternion_cells(const Eigen::Quaterniond& q_in) {
+  WireQuaternion q = to_wire(q_in);
+  std::string text = fmt::format("{:.9f},{:.9f},{:.9f},{:.9f}", q.qw, q.qx, q.qy, q.qz);
+  for (int i = 0; i < 4; ++i) {  // converges in one or two rounds
+    double v[4] = {};
+    std::string_view rest = text;
+    for (double& x : v) {
+      const auto comma = rest.find(',');
+      x = detail::parse_double(rest.substr(0, comma)).value_or(0.0);
+      rest = comma == std::string_view::npos ? std::string_view{} : rest.substr(comma + 1);
+    }
+    q = to_wire(from_wire(to_wire(from_wire(v[0], v[1], v[2], v[3]))));  // what the reader stores, in wire form
+    std::string again = fmt::format("{:.9f},{:.9f},{:.9f},{:.9f}", q.qw, q.qx, q.qy, q.qz);
+    if (again == text) break;
+    text = std::move(again);
+  }
+  return text;
+}
+
+}  // namespace
+
+TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& extra_columns)
     : path_(path), extra_count_(extra_columns.size()), out_(path, std::ios::binary | std::ios::trunc) {
   if (!out_) throw std::runtime_error(fmt::format("{}: cannot open for writing: {}", path_, std::strerror(errno)));
   std::string header = "t_us,x_m,y_m,z_m,qw,qx,qy,qz";
@@ -170,10 +197,9 @@ void TrajectoryCsvWriter::write(const StampedPose& sp, std::span<const std::stri
   if (!t.allFinite() || !sp.pose.q_cam_model.coeffs().allFinite()) {
     throw std::invalid_argument(fmt::format("{}: pose at t_us {} is not finite", path_, sp.t_us));
   }
-  const WireQuaternion q = to_wire(sp.pose.q_cam_model);
   fmt::memory_buffer row;
-  fmt::format_to(std::back_inserter(row), "{},{:.6f},{:.6f},{:.6f},{:.9f},{:.9f},{:.9f},{:.9f}", sp.t_us, t.x(), t.y(),
-                 t.z(), q.qw, q.qx, q.qy, q.qz);
+  fmt::format_to(std::back_inserter(row), "{},{:.6f},{:.6f},{:.6f},{}", sp.t_us, t.x(), t.y(), t.z(),
+                 quaternion_cells(sp.pose.q_cam_model));
   for (const auto& e : extra_values) {
     if (e.find_first_of(",\r\n") != std::string::npos) {
       throw std::invalid_argument(fmt::format("{}: extra value '{}' contains a comma or newline", path_, e));

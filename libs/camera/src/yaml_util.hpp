@@ -44,8 +44,11 @@ inline void reject_unknown_keys(const YAML::Node& map, std::initializer_list<std
     for (auto a : allowed) known = known || key == a;
     if (!known) {
       std::string list;
-      for (auto a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-      throw ModelError(file, path + "." + key, fmt::format("unknown key (expected one of: {})", list));
+      for (auto a : allowed) {
+        if (!list.empty()) list += ", ";
+        list += a;
+      }
+      throw ModelError(file, fmt::format("{}.{}", path, key), fmt::format("unknown key (expected one of: {})", list));
     }
   }
 }

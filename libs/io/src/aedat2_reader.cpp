@@ -1,9 +1,9 @@
 // AEDAT 2.0 (jAER) reader: '#' header lines, then big-endian {uint32 address, int32 timestamp} records
 // with the DAVIS address layout (formats.md §3).
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <cctype>
-#include <fmt/format.h>
 #include <string>
 #include <string_view>
 
@@ -56,7 +56,9 @@ bool looks_like_text(std::string_view line) {
 class Aedat2Reader final : public FileReader {
  public:
   Aedat2Reader(std::unique_ptr<ByteSource> source, ReaderOptions options)
-      : source_(std::move(source)), options_(std::move(options)), in_(*source_),
+      : source_(std::move(source)),
+        options_(std::move(options)),
+        in_(*source_),
         builder_(options_, stats_, source_->name()) {
     info_.name = source_->name();
     info_.format = "aedat2";
@@ -108,12 +110,10 @@ class Aedat2Reader final : public FileReader {
       }
       const auto status = in_.read_line(line, kMaxHeaderLine);
       if (status == detail::ChunkedInput::LineStatus::too_long)
-        fail(line_offset, fmt::format("header line longer than {} bytes (not an AEDAT 2.0 header)",
-                                      kMaxHeaderLine));
+        fail(line_offset, fmt::format("header line longer than {} bytes (not an AEDAT 2.0 header)", kMaxHeaderLine));
       if (status == detail::ChunkedInput::LineStatus::end) break;
       if (first) {
-        if (!line.starts_with(kMagic))
-          fail(line_offset, "not an AEDAT 2.0 file: the first line is not '#!AER-DAT2.0'");
+        if (!line.starts_with(kMagic)) fail(line_offset, "not an AEDAT 2.0 file: the first line is not '#!AER-DAT2.0'");
         first = false;
         continue;
       }
@@ -131,11 +131,10 @@ class Aedat2Reader final : public FileReader {
     } else {
       info_.geometry = options_.default_geometry;
       info_.geometry_known = false;
-      builder_.warn(std::nullopt,
-                    fmt::format("{}: assuming a {}x{} sensor with the DAVIS address layout",
-                                chip ? fmt::format("unknown jAER chip class '{}'", *chip)
-                                     : std::string("no '# AEChip:' header line"),
-                                info_.geometry.width, info_.geometry.height));
+      builder_.warn(std::nullopt, fmt::format("{}: assuming a {}x{} sensor with the DAVIS address layout",
+                                              chip ? fmt::format("unknown jAER chip class '{}'", *chip)
+                                                   : std::string("no '# AEChip:' header line"),
+                                              info_.geometry.width, info_.geometry.height));
     }
     if (info_.geometry.width <= 0 || info_.geometry.height <= 0)
       fail(start, fmt::format("invalid sensor size {}x{}", info_.geometry.width, info_.geometry.height));
@@ -170,8 +169,7 @@ class Aedat2Reader final : public FileReader {
       const int x_raw = static_cast<int>((addr >> 12) & 0x3FFu);
       const int y_raw = static_cast<int>((addr >> 22) & 0x1FFu);
       if (x_raw >= width || y_raw >= height)
-        fail(offset, fmt::format("event at x={} y={} is outside the {}x{} sensor{}", x_raw, y_raw, width,
-                                 height,
+        fail(offset, fmt::format("event at x={} y={} is outside the {}x{} sensor{}", x_raw, y_raw, width, height,
                                  info_.geometry_known ? "" : " (size assumed: the header names no known chip)"));
       // 32-bit wrap: the previous raw value high, the new one low (a drop of more than 2^31).
       if (last_raw_ts_ && static_cast<std::int64_t>(*last_raw_ts_) - raw_ts > (std::int64_t{1} << 31))

@@ -2,10 +2,10 @@
 // libcaer packet header followed by eventNumber x eventSize bytes (formats.md §4). Only polarity packets
 // give events; TIMESTAMP_RESET special events are clock discontinuities; everything else is skipped.
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <cctype>
 #include <charconv>
-#include <fmt/format.h>
 #include <string>
 #include <string_view>
 
@@ -56,8 +56,8 @@ std::optional<SensorGeometry> geometry_of_source(std::string_view description) {
     int w = 0;
     int h = 0;
     // 15-bit address fields: a larger size cannot be addressed.
-    if (parse_int(token.substr(0, x), w) && parse_int(token.substr(x + 1), h) && w > 0 && h > 0 &&
-        w <= 32768 && h <= 32768)
+    if (parse_int(token.substr(0, x), w) && parse_int(token.substr(x + 1), h) && w > 0 && h > 0 && w <= 32768 &&
+        h <= 32768)
       return SensorGeometry{w, h};
   }
   const std::string name = upper(description);
@@ -100,7 +100,9 @@ PacketHeader parse_packet_header(const std::byte* p) {
 class Aedat31Reader final : public FileReader {
  public:
   Aedat31Reader(std::unique_ptr<ByteSource> source, ReaderOptions options)
-      : source_(std::move(source)), options_(std::move(options)), in_(*source_),
+      : source_(std::move(source)),
+        options_(std::move(options)),
+        in_(*source_),
         builder_(options_, stats_, source_->name()) {
     info_.name = source_->name();
     info_.format = "aedat3.1";
@@ -150,20 +152,18 @@ class Aedat31Reader final : public FileReader {
       if (status == detail::ChunkedInput::LineStatus::end)
         fail(line_offset, "the header ends without '#!END-HEADER' (no event data)");
       if (first) {
-        if (!line.starts_with(kMagic))
-          fail(line_offset, "not an AEDAT 3.1 file: the first line is not '#!AER-DAT3.1'");
+        if (!line.starts_with(kMagic)) fail(line_offset, "not an AEDAT 3.1 file: the first line is not '#!AER-DAT3.1'");
         first = false;
         continue;
       }
-      if (!line.starts_with('#'))
-        fail(line_offset, "header line does not start with '#' before '#!END-HEADER'");
+      if (!line.starts_with('#')) fail(line_offset, "header line does not start with '#' before '#!END-HEADER'");
       if (line.starts_with(kEndHeader)) break;
       const auto body = trim(line.substr(1));
       if (body.starts_with("Format:")) {
         const auto format = trim(body.substr(7));
         if (format != "RAW")
-          fail(line_offset, fmt::format("AEDAT 3.1 format '{}' is not supported (only RAW)",
-                                        std::string(format.substr(0, 64))));
+          fail(line_offset,
+               fmt::format("AEDAT 3.1 format '{}' is not supported (only RAW)", std::string(format.substr(0, 64))));
       } else if (body.starts_with("Source") && !geometry) {
         const auto colon = body.find(':');
         if (colon != std::string_view::npos) geometry = geometry_of_source(body.substr(colon + 1));
@@ -176,8 +176,8 @@ class Aedat31Reader final : public FileReader {
     } else {
       info_.geometry = options_.default_geometry;
       info_.geometry_known = false;
-      builder_.warn(start, fmt::format("the header names no known sensor: assuming {}x{}",
-                                       info_.geometry.width, info_.geometry.height));
+      builder_.warn(start, fmt::format("the header names no known sensor: assuming {}x{}", info_.geometry.width,
+                                       info_.geometry.height));
       if (info_.geometry.width <= 0 || info_.geometry.height <= 0)
         fail(start, fmt::format("invalid sensor size {}x{}", info_.geometry.width, info_.geometry.height));
     }
@@ -208,8 +208,8 @@ class Aedat31Reader final : public FileReader {
     if (h.number < 0)
       fail(offset, fmt::format("packet of type {} has eventNumber {} (must be >= 0)", h.type, h.number));
     if (h.capacity != h.number)
-      fail(offset, fmt::format("packet of type {} has eventCapacity {} != eventNumber {}", h.type, h.capacity,
-                               h.number));
+      fail(offset,
+           fmt::format("packet of type {} has eventCapacity {} != eventNumber {}", h.type, h.capacity, h.number));
     const bool decoded = h.type == kPolarityEvent || h.type == kSpecialEvent;
     if (decoded && (h.event_size != static_cast<std::int32_t>(kEventBytes) || h.ts_offset != 4))
       fail(offset, fmt::format("{} packet with eventSize {} and eventTSOffset {} (expected 8 and 4)",

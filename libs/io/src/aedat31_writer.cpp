@@ -2,12 +2,12 @@
 // (no 3.1 recording exists in public data). The sensor size goes into the '#Source' line ("WxH"), which
 // evpipe's 3.1 reader parses, since the format has no size field.
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
-#include <fmt/format.h>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -56,8 +56,8 @@ class Aedat31Writer final : public EventWriter {
     if (file_ == nullptr) throw SourceError(path_ + ": write after close");
     for (const Event& e : events) {
       if (e.x >= options_.geometry.width || e.y >= options_.geometry.height)
-        throw std::invalid_argument(fmt::format("{}: event at x={} y={} is outside the {}x{} sensor", path_, e.x,
-                                                e.y, options_.geometry.width, options_.geometry.height));
+        throw std::invalid_argument(fmt::format("{}: event at x={} y={} is outside the {}x{} sensor", path_, e.x, e.y,
+                                                options_.geometry.width, options_.geometry.height));
       // t = (overflow << 31) | ts with a 31-bit ts and an int32 overflow counter.
       constexpr std::int64_t kLimit = std::int64_t{1} << 62;
       if (e.t_us >= kLimit || e.t_us < -kLimit)
@@ -102,9 +102,9 @@ class Aedat31Writer final : public EventWriter {
     for (char& c : name)
       if (c == '\r' || c == '\n') c = ' ';
     // The "WxH" token comes first: evpipe's reader takes the first such token as the sensor size.
-    const std::string header = fmt::format(
-        "#!AER-DAT3.1\r\n#Format: RAW\r\n#Source {}: {}{}x{} ({})\r\n#Start-Time: {}\r\n#!END-HEADER\r\n",
-        kSourceId, sensor, g.width, g.height, name, when);
+    const std::string header =
+        fmt::format("#!AER-DAT3.1\r\n#Format: RAW\r\n#Source {}: {}{}x{} ({})\r\n#Start-Time: {}\r\n#!END-HEADER\r\n",
+                    kSourceId, sensor, g.width, g.height, name, when);
     const auto* p = reinterpret_cast<const std::byte*>(header.data());
     put(std::vector<std::byte>(p, p + header.size()));
   }
@@ -123,8 +123,8 @@ class Aedat31Writer final : public EventWriter {
     put_le32(buf_, n);  // eventNumber
     put_le32(buf_, n);  // eventValid
     for (const Event& e : pending_) {
-      const std::uint32_t data = 1u /*valid*/ | (e.polarity ? 1u << 1 : 0u) | (std::uint32_t{e.y} << 2) |
-                                 (std::uint32_t{e.x} << 17);
+      const std::uint32_t data =
+          1u /*valid*/ | (e.polarity ? 1u << 1 : 0u) | (std::uint32_t{e.y} << 2) | (std::uint32_t{e.x} << 17);
       put_le32(buf_, data);
       put_le32(buf_, static_cast<std::uint32_t>(e.t_us & 0x7FFFFFFF));
     }

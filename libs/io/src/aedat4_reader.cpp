@@ -354,7 +354,11 @@ class Aedat4Reader final : public FileReader {
       window_begin_ = 0;
       window_end_ = have;
     }
-    if (window_.size() < std::max(n, kReadAheadBytes)) window_.resize(std::max(n, kReadAheadBytes));
+    // read ahead, but not beyond the end of a small input (fuzzers, tests)
+    std::size_t ahead = kReadAheadBytes;
+    if (file_size_ && *file_size_ > pos_)
+      ahead = static_cast<std::size_t>(std::min<std::uint64_t>(ahead, *file_size_ - pos_));
+    if (window_.size() < std::max(n, ahead)) window_.resize(std::max(n, ahead));
     window_end_ += read_up_to(std::span(window_.data() + window_end_, window_.size() - window_end_));
     have = window_end_ - window_begin_;
     return std::min(n, have);
@@ -459,7 +463,7 @@ class Aedat4Reader final : public FileReader {
       }
       const auto* bytes = reinterpret_cast<const std::uint8_t*>(buffer.data());
       if (identify_by_content_ &&
-          (buffer.size() < 8 || !flatbuffers::BufferHasIdentifier(bytes, fb::EventPacketIdentifier(), true))) {
+          (buffer.size() < 12 || !flatbuffers::BufferHasIdentifier(bytes, fb::EventPacketIdentifier(), true))) {
         ++stats_.skipped_non_dvs;
         continue;
       }

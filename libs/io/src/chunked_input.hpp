@@ -135,7 +135,10 @@ class ChunkedInput {
 class BatchBuilder {
  public:
   BatchBuilder(const ReaderOptions& options, SourceStats& stats, const std::string& file)
-      : options_(options), stats_(stats), file_(file), clock_(std::in_place, options, stats, file),
+      : options_(options),
+        stats_(stats),
+        file_(file),
+        clock_(std::in_place, options, stats, file),
         capacity_(std::max<std::size_t>(options.batch_events, 1)) {}
 
   /// Starts a new batch (carrying over an event held back by a discontinuity).
@@ -157,7 +160,8 @@ class BatchBuilder {
   /// Adds one event decoded at byte `offset` (label ignored unless the batch is labelled).
   void add(const Event& e, std::uint64_t offset, Label label = Label::signal, bool labelled = false) {
     switch (clock_->check(e.t_us, offset)) {
-      case TimeOrder::Verdict::drop: return;
+      case TimeOrder::Verdict::drop:
+        return;
       case TimeOrder::Verdict::keep_after_discontinuity:
         if (!batch_->events.empty()) {
           carry_.emplace(e, label);
@@ -167,7 +171,8 @@ class BatchBuilder {
         }
         batch_->discontinuity_before = true;
         break;
-      case TimeOrder::Verdict::keep: break;
+      case TimeOrder::Verdict::keep:
+        break;
     }
     batch_->events.push_back(e);
     if (labelled) batch_->labels.push_back(label);
@@ -203,9 +208,7 @@ class BatchBuilder {
   /// True when an event is held back for the next batch.
   [[nodiscard]] bool has_carry() const noexcept { return carry_.has_value(); }
 
-  void warn(std::optional<std::uint64_t> offset, std::string what) const {
-    clock_->warn(offset, std::move(what));
-  }
+  void warn(std::optional<std::uint64_t> offset, std::string what) const { clock_->warn(offset, std::move(what)); }
 
  private:
   const ReaderOptions& options_;

@@ -10,10 +10,10 @@
 // 6 fraction digits are ROUNDED to the nearest microsecond (ties away from zero): files printed with
 // "%.9f" are common and their extra digits carry no information at µs resolution.
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <array>
 #include <charconv>
-#include <fmt/format.h>
 #include <string>
 #include <string_view>
 
@@ -27,7 +27,9 @@ namespace {
 constexpr std::size_t kMaxLine = 4096;
 constexpr std::size_t kMaxColumns = 5;
 
-bool is_separator(char c) { return c == ' ' || c == '\t' || c == ','; }
+bool is_separator(char c) {
+  return c == ' ' || c == '\t' || c == ',';
+}
 
 /// Printable excerpt of a token for messages.
 std::string show(std::string_view token) {
@@ -89,7 +91,9 @@ struct Parsed {
 class TextReader final : public FileReader {
  public:
   TextReader(std::unique_ptr<ByteSource> source, ReaderOptions options)
-      : source_(std::move(source)), options_(std::move(options)), in_(*source_),
+      : source_(std::move(source)),
+        options_(std::move(options)),
+        in_(*source_),
         builder_(options_, stats_, source_->name()) {
     info_.name = source_->name();
     info_.format = "text";
@@ -217,7 +221,6 @@ class TextReader final : public FileReader {
         info_.geometry_known = true;
         continue;
       }
-      first_non_comment = false;
       seconds_ = tokens[0].find('.') != std::string_view::npos;
       columns_ = n;
       info_.labelled = n == kMaxColumns;
@@ -236,8 +239,8 @@ class TextReader final : public FileReader {
       if (is_comment_or_blank(line)) {
         if (line.find("width=") != std::string_view::npos && line.find("height=") != std::string_view::npos &&
             ++late_geometry_warnings_ == 1)
-          builder_.warn(offset, fmt::format("line {}: a sensor size comment after the first event is ignored",
-                                            line_no_));
+          builder_.warn(offset,
+                        fmt::format("line {}: a sensor size comment after the first event is ignored", line_no_));
         continue;
       }
       std::array<std::string_view, kMaxColumns + 1> tokens;
@@ -248,11 +251,11 @@ class TextReader final : public FileReader {
     return false;
   }
 
-  void parse_event(const std::array<std::string_view, kMaxColumns + 1>& tokens, std::size_t n,
-                   std::uint64_t offset, Parsed& p) {
+  void parse_event(const std::array<std::string_view, kMaxColumns + 1>& tokens, std::size_t n, std::uint64_t offset,
+                   Parsed& p) {
     if (n < 4 || n > kMaxColumns)
-      fail(offset, fmt::format("expected 4 or 5 columns 't x y p [label]', found {}{}", n > kMaxColumns ? "more than " : "",
-                               std::min(n, kMaxColumns)));
+      fail(offset, fmt::format("expected 4 or 5 columns 't x y p [label]', found {}{}",
+                               n > kMaxColumns ? "more than " : "", std::min(n, kMaxColumns)));
     if (columns_ != 0 && n != columns_)
       fail(offset, fmt::format("{} columns, but the first event line has {} (labels must be given for every "
                                "event or for none)",

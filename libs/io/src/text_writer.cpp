@@ -1,10 +1,10 @@
 // Text writer: `# width=W height=H`, then one `t x y p [label]` line per event (t integer µs, p 0/1,
 // label 1 = signal / 0 = noise), formatted with fmt into a buffer flushed in large writes.
 
+#include <fmt/format.h>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <fmt/format.h>
 #include <iterator>
 #include <stdexcept>
 #include <utility>
@@ -42,16 +42,16 @@ class TextWriter final : public EventWriter {
     const bool with_labels = options_.write_labels && !labels.empty();
     if (!labelled_) labelled_ = with_labels;
     if (*labelled_ != with_labels)
-      throw std::invalid_argument(fmt::format("{}: events {} labels after events {} them (every line of a text "
-                                              "file needs the same columns)",
-                                              path_, with_labels ? "with" : "without",
-                                              *labelled_ ? "with" : "without"));
+      throw std::invalid_argument(
+          fmt::format("{}: events {} labels after events {} them (every line of a text "
+                      "file needs the same columns)",
+                      path_, with_labels ? "with" : "without", *labelled_ ? "with" : "without"));
     auto out = std::back_inserter(buf_);
     for (std::size_t i = 0; i < events.size(); ++i) {
       const Event& e = events[i];
       if (e.x >= options_.geometry.width || e.y >= options_.geometry.height)
-        throw std::invalid_argument(fmt::format("{}: event at x={} y={} is outside the {}x{} sensor", path_, e.x,
-                                                e.y, options_.geometry.width, options_.geometry.height));
+        throw std::invalid_argument(fmt::format("{}: event at x={} y={} is outside the {}x{} sensor", path_, e.x, e.y,
+                                                options_.geometry.width, options_.geometry.height));
       if (with_labels) {
         fmt::format_to(out, "{} {} {} {} {}\n", e.t_us, e.x, e.y, e.polarity ? 1 : 0,
                        labels[i] == Label::signal ? 1 : 0);

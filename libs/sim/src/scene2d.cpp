@@ -8,21 +8,35 @@
 
 namespace evpipe::sim {
 
-bool MovingPolygon::contains(double x, double y, double t_s) const noexcept {
+namespace {
+
+/// A polygon's pose at one time: computed once per simulation step instead of once per pixel (the cos/sin
+/// dominated the 2D render). The arithmetic is exactly that of the per-call version, so the events do not
+/// change by a bit.
+struct Placed {
+  const MovingPolygon* polygon;
+  double c, s;    // cos, sin of the rotation
+  double cx, cy;  // centre
+};
+
+Placed place(const MovingPolygon& p, double t_s) {
+  const double a = p.angle0_rad + p.omega_rad_s * t_s;
+  return {&p, std::cos(a), std::sin(a), p.cx_px + p.vx_px_s * t_s, p.cy_px + p.vy_px_s * t_s};
+}
+
+bool inside(const Placed& q, double x, double y) noexcept {
   // Transform the point into the polygon's frame (inverse rotation about the moving centre).
-  const double a = angle0_rad + omega_rad_s * t_s;
-  const double dx = x - (cx_px + vx_px_s * t_s);
-  const double dy = y - (cy_px + vy_px_s * t_s);
-  const double c = std::cos(a);
-  const double s = std::sin(a);
-  const double px = c * dx + s * dy;
-  const double py = -s * dx + c * dy;
+  const double dx = x - q.cx;
+  const double dy = y - q.cy;
+  const double px = q.c * dx + q.s * dy;
+  const double py = -q.s * dx + q.c * dy;
   // Convex: inside iff on the same side of every edge.
   int sign = 0;
-  const std::size_t n = vertices_px.size();
+  const auto& v = q.polygon->vertices_px;
+  const std::size_t n = v.size();
   for (std::size_t i = 0; i < n; ++i) {
-    const auto [x0, y0] = vertices_px[i];
-    const auto [x1, y1] = vertices_px[(i + 1) % n];
+    const auto [x0, y0] = v[i];
+    const auto [x1, y1] = v[(i + 1) % n];
     const double cross = (x1 - x0) * (py - y0) - (y1 - y0) * (px - x0);
     const int sg = cross > 0 ? 1 : (cross < 0 ? -1 : 0);
     if (sg == 0) continue;
@@ -31,6 +45,10 @@ bool MovingPolygon::contains(double x, double y, double t_s) const noexcept {
   }
   return true;
 }
+
+}  // namespace
+
+bool MovingPolygon::contains(double x, double y, double t_s) const noexcept { return inside(place(*this, t_s), x, y); }
 
 double MovingPolygon::radius_px() const noexcept {
   double r = 0;
@@ -73,6 +91,8 @@ std::vector<Event> render(const Scene2D& scene, std::int64_t t0_us, std::int64_t
     const double tb = std::min(ta + step_s, t_end_s);
     // Pixels that can change in [ta, tb]: the union of every shape's bounding circle at both ends.
     for (const auto& s : scene.shapes) {
+      const Placed at_a = place(s, ta);
+      const Placed at_b = place(s, tb);
       const double r = s.radius_px() + 1.0;
       const double xa = s.cx_px + s.vx_px_s * ta, ya = s.cy_px + s.vy_px_s * ta;
       const double xb = s.cx_px + s.vx_px_s * tb, yb = s.cy_px + s.vy_px_s * tb;
@@ -86,7 +106,7 @@ std::vector<Event> render(const Scene2D& scene, std::int64_t t0_us, std::int64_t
           const double py = y + 0.5;
           // Only this shape's changes are looked for here; the union decides the brightness, so a pixel
           // covered by two shapes is checked once per shape but emits only when the union changes.
-          if (s.contains(px, py, ta) == s.contains(px, py, tb)) continue;
+          if (inside(at_a, px, py) == inside(at_b, px, py)) continue;
           const bool before = bright(scene, px, py, ta);
           const bool after = bright(scene, px, py, tb);
           if (before == after) continue;

@@ -57,7 +57,7 @@ inline constexpr double kMinSegmentLength_m = 1e-9;
 ///   LINE is an error; a repeated polyline vertex (a common CAD export artifact) is skipped with a note.
 ///
 /// Validation, both formats: at least one segment, all numbers finite, no segment shorter than
-/// kMinSegmentLength_m. Files over 64 MiB are rejected before reading.
+/// kMinSegmentLength_m. Files over 64 MiB (YAML: over 4 MiB) are rejected before parsing.
 /// @param notes if not null, receives one line per non-fatal remark (assumed units, skipped entities).
 /// @throws ModelError naming the file and the YAML field ("model.lines[3]: zero-length segment") or the DXF
 ///         line number ("line 57: LINE entity #2 has no end point y (group 21)").

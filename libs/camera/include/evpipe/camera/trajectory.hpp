@@ -29,12 +29,13 @@ inline constexpr std::array<std::string_view, 8> kTrajectoryColumns = {"t_us", "
 [[nodiscard]] std::vector<StampedPose> read_trajectory_csv(const std::string& path);
 
 /// Writes a trajectory CSV: header t_us,x_m,y_m,z_m,qw,qx,qy,qz[,extra...], then one row per write():
-/// t_us as an integer, positions with 6 decimals (1 µm), quaternion (unit, qw >= 0) with 9 decimals.
+/// t_us as an integer, positions with 6 decimals (1 µm), quaternion (unit, qw >= 0) with 9 decimals, chosen (in
+/// the last digit) so that write → read_trajectory_csv() → write gives the same bytes.
 class TrajectoryCsvWriter {
  public:
   /// Creates/truncates the file and writes the header. extra_columns are appended after the eight.
   /// @throws std::runtime_error naming the file if it cannot be opened.
-  explicit TrajectoryCsvWriter(const std::string& path, std::vector<std::string> extra_columns = {});
+  explicit TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& extra_columns = {});
 
   /// One row. extra_values must have one entry per extra column (std::invalid_argument otherwise); they are
   /// written verbatim, so they must not contain commas or newlines.

@@ -31,8 +31,10 @@ class EventWriter {
 
   /// Appends events (time-ordered within the file). `labels` is empty or one per event.
   virtual void write(EventSpan events, std::span<const Label> labels = {}) = 0;
-  /// Flushes and finalises the file (AEDAT 4.0: the file data table). Called by the destructor if
-  /// needed, but call it explicitly to see errors. Throws evpipe::SourceError on I/O failure.
+  /// Flushes and finalises the file (AEDAT 4.0: the file data table). Call it explicitly: it throws
+  /// evpipe::SourceError on I/O failure. A writer destroyed without close() (an interrupted program) still
+  /// flushes the events written so far, but an AEDAT 4.0 file then has no data table
+  /// (dataTablePosition = -1), which evpipe and the other readers handle.
   virtual void close() = 0;
 };
 
