@@ -667,5 +667,22 @@ TEST_F(Aedat4Files, ShortPacketWithoutStreamTableIsSkippedSafely) {
   }
 }
 
+TEST_F(Aedat4Files, EmptyUncompressedPacketIsCorruptNotACrash) {
+  // Regression (found by fuzz_aedat4 under UBSan): a zero-byte packet in an uncompressed file made the
+  // reader memcpy from a null pointer.
+  WriterOptions w;
+  w.compression = "none";
+  const auto events = synthetic_events(100);
+  Bytes b = write(events, w, false, "empty-packet.aedat4");  // no data table: packets are read to EOF
+  // The empty packet goes first, before any buffer has been allocated.
+  const std::size_t at = data_start(b);
+  b.insert(b.begin() + static_cast<std::ptrdiff_t>(at), 8, std::byte{0});
+  put<std::int32_t>(b, at, 0);      // stream 0, the event stream
+  put<std::int32_t>(b, at + 4, 0);  // no payload
+  const Decoded d = decode_bytes(b);
+  EXPECT_EQ(d.events, events);
+  EXPECT_EQ(d.stats.corrupt_packets, 1u);
+}
+
 }  // namespace
 }  // namespace evpipe::io

@@ -452,7 +452,7 @@ class Aedat4Reader final : public FileReader {
       if (compression_ == fb::CompressionType::NONE) {
         // the flatbuffer is read in place: copy it to an aligned buffer
         if (stored_.size() < stored_bytes) stored_.resize(stored_bytes);
-        std::memcpy(stored_.data(), stored.data(), stored_bytes);
+        if (stored_bytes > 0) std::memcpy(stored_.data(), stored.data(), stored_bytes);  // empty: data() may be null
         stored = std::span<const std::byte>(stored_.data(), stored_bytes);
       }
 
