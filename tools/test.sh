@@ -12,6 +12,9 @@ stamp() { echo "== [$(( $(date +%s) - t_start )) s] $*"; }
 stamp "set-up"
 bash tools/setup.sh
 
+stamp "format check (.clang-format)"
+bash tools/check_format.sh
+
 stamp "build (ci preset: RelWithDebInfo, -Werror)"
 cmake --preset ci >/dev/null
 cmake --build --preset ci -j"$jobs"

@@ -5,8 +5,8 @@
 
 #include <CLI/CLI.hpp>
 
-#include <cstdio>
 #include <fmt/format.h>
+#include <cstdio>
 
 #include "evpipe/core/error.hpp"
 #include "evpipe/io/reader.hpp"

@@ -6,7 +6,9 @@
 
 namespace evpipe::app {
 
-bool live_camera_supported() { return device::using_real_libcaer(); }
+bool live_camera_supported() {
+  return device::using_real_libcaer();
+}
 
 std::unique_ptr<EventSource> open_live_source(const config::DeviceConfig& cfg) {
   if (!device::using_real_libcaer())

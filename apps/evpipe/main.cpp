@@ -4,9 +4,9 @@
 // Exit status: 0 success (also after SIGINT/SIGTERM), 1 runtime error (bad file, device), 2 usage or
 // configuration error.
 
-#include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -29,7 +29,9 @@
 namespace {
 
 std::atomic<bool> g_stop{false};
-extern "C" void on_signal(int /*sig*/) { g_stop.store(true); }
+extern "C" void on_signal(int /*sig*/) {
+  g_stop.store(true);
+}
 
 struct Cli {
   std::string config_path;

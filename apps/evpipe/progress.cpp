@@ -2,8 +2,9 @@
 
 #include <unistd.h>
 
-#include <cstdio>
 #include <fmt/format.h>
+#include <algorithm>
+#include <cstdio>
 #include <string>
 
 namespace evpipe::app {
@@ -25,15 +26,13 @@ void ProgressBar::update(std::optional<double> fraction, std::uint64_t events, s
   std::string bar;
   if (fraction) {
     constexpr int width = 30;
-    const int filled = static_cast<int>(*fraction * width + 0.5);
-    bar = "[" + std::string(static_cast<std::size_t>(filled), '#') +
-          std::string(static_cast<std::size_t>(width - filled), '.') + fmt::format("] {:5.1f}%", *fraction * 100);
+    const int filled = std::clamp(static_cast<int>(*fraction * width + 0.5), 0, width);
+    bar = fmt::format("[{:#<{}}{:.<{}}] {:5.1f}%", "", filled, "", width - filled, *fraction * 100);
   } else {
     bar = "[live]";
   }
-  std::fprintf(stderr, "\r%s  elapsed %6.1f s  stream %8.2f s  %6.2f Mev/s  %llu ev\x1b[K", bar.c_str(),
-               elapsed, static_cast<double>(stream_time_us) / 1e6, rate_mevs_,
-               static_cast<unsigned long long>(events));
+  std::fprintf(stderr, "\r%s  elapsed %6.1f s  stream %8.2f s  %6.2f Mev/s  %llu ev\x1b[K", bar.c_str(), elapsed,
+               static_cast<double>(stream_time_us) / 1e6, rate_mevs_, static_cast<unsigned long long>(events));
   std::fflush(stderr);
 }
 

@@ -10,10 +10,18 @@ std::string json_escape(const std::string& in) {
   std::string out;
   for (const char c : in) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20)
           out += fmt::format("\\u{:04x}", static_cast<int>(c));
@@ -59,10 +67,10 @@ std::string format_text(const RunSummary& s) {
   if (s.source.truncated_bytes) line("truncated bytes", fmt::format("{}", s.source.truncated_bytes));
   if (s.source.dropped_packets || s.source.dropped_events)
     line("dropped", fmt::format("{} packets, {} events", s.source.dropped_packets, s.source.dropped_events));
-  line("windows", fmt::format("{} of {} ms, hop {} ms ({} events)", s.windows, s.window_us / 1000.0,
-                              s.hop_us / 1000.0, s.window_events));
-  line("wall time", fmt::format("{:.3f} s ({})", s.wall_s,
-                                rate(s.wall_s > 0 ? static_cast<double>(st.events()) / s.wall_s : 0.0)));
+  line("windows", fmt::format("{} of {} ms, hop {} ms ({} events)", s.windows, s.window_us / 1000.0, s.hop_us / 1000.0,
+                              s.window_events));
+  line("wall time",
+       fmt::format("{:.3f} s ({})", s.wall_s, rate(s.wall_s > 0 ? static_cast<double>(st.events()) / s.wall_s : 0.0)));
   if (!s.error.empty()) line("error", s.error);
   return o;
 }
@@ -77,9 +85,8 @@ std::string format_json(const RunSummary& s) {
       "\"invalid_events\":{},\"corrupt_packets\":{},\"truncated_bytes\":{},\"dropped_packets\":{},"
       "\"dropped_events\":{},\"windows\":{},\"window_events\":{},\"window_us\":{},\"hop_us\":{},"
       "\"wall_s\":{:.6f},\"interrupted\":{},\"error\":\"{}\"}}\n",
-      json_escape(s.info.name), s.info.format, s.info.geometry.width, s.info.geometry.height,
-      s.info.geometry_known, st.events(), st.on_events(),
-      st.first_t_us() ? fmt::format("{}", *st.first_t_us()) : "null",
+      json_escape(s.info.name), s.info.format, s.info.geometry.width, s.info.geometry.height, s.info.geometry_known,
+      st.events(), st.on_events(), st.first_t_us() ? fmt::format("{}", *st.first_t_us()) : "null",
       st.last_t_us() ? fmt::format("{}", *st.last_t_us()) : "null", st.duration_us(), st.mean_rate_hz(),
       st.peak_rate_hz(), st.peak_bin_us(), st.on_share(), s.source.out_of_order, s.out_of_order_dropped,
       s.source.discontinuities, s.source.skipped_non_dvs, s.source.invalid_events, s.source.corrupt_packets,

@@ -13,13 +13,13 @@ struct RunSummary {
   SourceInfo info;
   SourceStats source;
   const StreamStats* stream = nullptr;
-  std::uint64_t windows = 0;          ///< windows passed through the (pass-through) stage
-  std::uint64_t window_events = 0;    ///< events counted in those windows
+  std::uint64_t windows = 0;        ///< windows passed through the (pass-through) stage
+  std::uint64_t window_events = 0;  ///< events counted in those windows
   std::int64_t window_us = 0;
   std::int64_t hop_us = 0;
   double wall_s = 0;
   bool interrupted = false;
-  std::string error;                  ///< non-empty when the run stopped on an error
+  std::string error;  ///< non-empty when the run stopped on an error
   bool out_of_order_dropped = true;
 };
 

@@ -9,8 +9,8 @@
 // Every mode writes <stem>.manifest.yaml (unless --no-manifest).
 // Exit status: 0 success, 1 input/output error, 2 usage error.
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -46,10 +46,10 @@ using namespace evpipe;
 
 namespace {
 
-constexpr std::int64_t kPreviewSpan_us = 30'000;     // the 30 ms window of --png (and of the pure-noise protocol)
-constexpr std::int64_t kPureNoiseSpan_us = 30'000;   // paper, section 4.1
-constexpr double kMaxDuration_s = 3600.0;            // bounds the trajectory and event memory
-constexpr double kMaxExpectedNoiseEvents = 2e8;      // ~3 GB of events: refuse rather than exhaust memory
+constexpr std::int64_t kPreviewSpan_us = 30'000;    // the 30 ms window of --png (and of the pure-noise protocol)
+constexpr std::int64_t kPureNoiseSpan_us = 30'000;  // paper, section 4.1
+constexpr double kMaxDuration_s = 3600.0;           // bounds the trajectory and event memory
+constexpr double kMaxExpectedNoiseEvents = 2e8;     // ~3 GB of events: refuse rather than exhaust memory
 constexpr int kPreviewScale = 2;
 
 /// A problem with the command line (exit 2), as opposed to an input/output failure (exit 1).
@@ -99,9 +99,12 @@ enum class Mode { pure_noise, scene2d, target3d };
 
 const char* mode_name(Mode m) {
   switch (m) {
-    case Mode::pure_noise: return "pure-noise";
-    case Mode::scene2d: return "scene2d";
-    case Mode::target3d: return "target3d";
+    case Mode::pure_noise:
+      return "pure-noise";
+    case Mode::scene2d:
+      return "scene2d";
+    case Mode::target3d:
+      return "target3d";
   }
   return "?";
 }
@@ -140,8 +143,8 @@ Eigen::Quaterniond parse_orientation(const std::string& text) {
 }
 
 void check_expected_noise(const Config& c, const SensorGeometry& g, double span_s) {
-  const double expected = (c.noise.rate_hz_per_pixel * static_cast<double>(g.pixels()) +
-                           c.noise.hot_pixels * c.noise.hot_rate_hz) * span_s;
+  const double expected =
+      (c.noise.rate_hz_per_pixel * static_cast<double>(g.pixels()) + c.noise.hot_pixels * c.noise.hot_rate_hz) * span_s;
   if (expected > kMaxExpectedNoiseEvents) {
     throw UsageError(fmt::format("the noise options ask for ~{:.3g} events, over the {:.0e} evsim accepts", expected,
                                  kMaxExpectedNoiseEvents));
@@ -288,8 +291,8 @@ int run(Config& c) {
     throw UsageError("--gt-rate-hz must be in [1000, 1e6] (ground truth at >= 1 kHz)");
   }
   if (static_cast<double>(c.pure_noise) > kMaxExpectedNoiseEvents) {
-    throw UsageError(fmt::format("--pure-noise {} is over the {:.0e} events evsim accepts", c.pure_noise,
-                                 kMaxExpectedNoiseEvents));
+    throw UsageError(
+        fmt::format("--pure-noise {} is over the {:.0e} events evsim accepts", c.pure_noise, kMaxExpectedNoiseEvents));
   }
   // Check the output names before anything is written, so that a bad one leaves no partial set of files.
   (void)io::format_for_output(c.out);  // throws std::invalid_argument naming the path
@@ -343,7 +346,8 @@ int run(Config& c) {
       }
       t0_us = trajectory.front().t_us;
       t1_us = trajectory.back().t_us;
-      if (c.duration_given) t1_us = std::min(t1_us, t0_us + static_cast<std::int64_t>(std::llround(c.duration_ms * 1e3)));
+      if (c.duration_given)
+        t1_us = std::min(t1_us, t0_us + static_cast<std::int64_t>(std::llround(c.duration_ms * 1e3)));
       if (static_cast<double>(t1_us - t0_us) * 1e-6 > kMaxDuration_s) {
         throw UsageError(fmt::format("{}: spans {} s, over the {} s evsim accepts (limit it with --duration-ms)",
                                      c.trajectory_file, static_cast<double>(t1_us - t0_us) * 1e-6, kMaxDuration_s));
@@ -366,7 +370,7 @@ int run(Config& c) {
       } else {
         R = sim::default_view(scene.model);
         orientation_source = R.isApprox(Eigen::Quaterniond::Identity(), 0.0) ? "default: planar model, facing"
-                                                                                : "default: front-left three-quarter";
+                                                                             : "default: front-left three-quarter";
       }
       if (!(c.distance_m > 0)) throw UsageError("--distance-m must be > 0");
       c.motion.base = sim::facing_pose(scene.model, c.distance_m, R);
@@ -541,8 +545,9 @@ int main(int argc, char** argv) {
   app.add_option("--out", c.out, "Output recording (.aedat4, .aedat3 or .txt); other files go beside it")->required();
   app.add_option("--labels", c.labels_out, "Also write labelled text 't x y p label' (1 signal, 0 noise) here");
   app.add_option("--png", c.png_out, "Also write a 30 ms event frame (white, red ON, blue OFF, 2x) here");
-  app.add_option("--png-t-ms", c.png_t_ms, "Start of the --png window, ms after the recording's start "
-                                           "(default: the window centred on the middle)")
+  app.add_option("--png-t-ms", c.png_t_ms,
+                 "Start of the --png window, ms after the recording's start "
+                 "(default: the window centred on the middle)")
       ->check(CLI::NonNegativeNumber)
       ->default_str("middle");
   app.add_flag("--png-model", c.png_model, "3D: draw the model at the ground-truth pose in grey under the events");
@@ -557,9 +562,9 @@ int main(int argc, char** argv) {
   app.add_option("--noise-on-share", c.noise.on_share, "Share of noise events that are ON")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--hot-pixels", c.noise.hot_pixels, "Number of hot pixels")->check(CLI::NonNegativeNumber);
-  app.add_option("--hot-rate-hz", c.noise.hot_rate_hz, "Rate of each hot pixel (Hz)")
-      ->check(CLI::NonNegativeNumber);
-  auto* pure = app.add_option("--pure-noise", c.pure_noise, "Paper protocol: exactly N noise events in 30 ms, no scene");
+  app.add_option("--hot-rate-hz", c.noise.hot_rate_hz, "Rate of each hot pixel (Hz)")->check(CLI::NonNegativeNumber);
+  auto* pure =
+      app.add_option("--pure-noise", c.pure_noise, "Paper protocol: exactly N noise events in 30 ms, no scene");
   // 2D
   auto* scene = app.add_option("--scene", c.scene_name, "2D scene: rotating-bar, translating-rect, demo");
   auto* speed = app.add_option("--speed", c.speed, "2D scene speed factor")->check(CLI::PositiveNumber);
@@ -580,13 +585,13 @@ int main(int argc, char** argv) {
                             ->check(CLI::NonNegativeNumber));
   motion_opts.push_back(app.add_option("--range-deg", c.motion.range_deg, "3D motion: max rotation per axis (deg)")
                             ->check(CLI::NonNegativeNumber));
-  motion_opts.push_back(app.add_option("--max-speed-m-s", c.motion.max_speed_m_s, "3D motion: max speed")
-                            ->check(CLI::NonNegativeNumber));
-  motion_opts.push_back(app.add_option("--max-angular-speed-deg-s", c.motion.max_angular_speed_deg_s,
-                                       "3D motion: max angular speed")
-                            ->check(CLI::NonNegativeNumber));
-  motion_opts.push_back(app.add_option("--min-freq-hz", c.motion.min_freq_hz, "3D motion: lowest frequency")
-                            ->check(CLI::PositiveNumber));
+  motion_opts.push_back(
+      app.add_option("--max-speed-m-s", c.motion.max_speed_m_s, "3D motion: max speed")->check(CLI::NonNegativeNumber));
+  motion_opts.push_back(
+      app.add_option("--max-angular-speed-deg-s", c.motion.max_angular_speed_deg_s, "3D motion: max angular speed")
+          ->check(CLI::NonNegativeNumber));
+  motion_opts.push_back(
+      app.add_option("--min-freq-hz", c.motion.min_freq_hz, "3D motion: lowest frequency")->check(CLI::PositiveNumber));
   motion_opts.push_back(app.add_option("--max-freq-hz", c.motion.max_freq_hz, "3D motion: highest frequency")
                             ->check(CLI::PositiveNumber));
   app.add_option("--gt-rate-hz", c.motion.rate_hz, "3D: ground-truth rows per second (>= 1000)");
@@ -604,8 +609,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.01, 2.0));
   app.add_option("--prior-offset-m", c.prior_offset_m, "3D: prior = first ground-truth pose moved by this")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--prior-offset-deg", c.prior_offset_deg, "3D: ... and turned by this")
-      ->check(CLI::Range(0.0, 180.0));
+  app.add_option("--prior-offset-deg", c.prior_offset_deg, "3D: ... and turned by this")->check(CLI::Range(0.0, 180.0));
   app.add_option("--prior-position-tolerance-m", c.prior_position_tolerance_m, "3D: prior's position_tolerance")
       ->check(CLI::PositiveNumber);
   app.add_option("--prior-angle-tolerance-deg", c.prior_angle_tolerance_deg, "3D: prior's angle_tolerance_deg")

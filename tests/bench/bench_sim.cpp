@@ -24,7 +24,8 @@ constexpr std::int64_t kSpan_us = 1'000'000;
 
 void report(benchmark::State& state, std::size_t events_per_call) {
   const auto n = static_cast<double>(state.iterations());
-  state.counters["events/s"] = benchmark::Counter(n * static_cast<double>(events_per_call), benchmark::Counter::kIsRate);
+  state.counters["events/s"] =
+      benchmark::Counter(n * static_cast<double>(events_per_call), benchmark::Counter::kIsRate);
   state.counters["sim_s/s"] = benchmark::Counter(n * static_cast<double>(kSpan_us) * 1e-6, benchmark::Counter::kIsRate);
   state.counters["events"] = static_cast<double>(events_per_call);
 }

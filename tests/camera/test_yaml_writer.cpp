@@ -8,8 +8,8 @@
 
 #include <cmath>
 #include <fstream>
-#include <sstream>
 #include <limits>
+#include <sstream>
 
 namespace evpipe::camera {
 namespace {

@@ -197,7 +197,8 @@ TEST_F(DavisSourceTest, FilterAndContainerOptionsAreSentInDeviceUnits) {
   EXPECT_EQ(fake().last_config_set(DAVIS_CONFIG_DVS, DAVIS_CONFIG_DVS_FILTER_REFRACTORY_PERIOD), 1u);
   EXPECT_EQ(fake().last_config_set(DAVIS_CONFIG_DVS, DAVIS_CONFIG_DVS_FILTER_REFRACTORY_PERIOD_TIME), 4u);
   EXPECT_EQ(fake().last_config_set(CAER_HOST_CONFIG_PACKETS, CAER_HOST_CONFIG_PACKETS_MAX_CONTAINER_INTERVAL), 1000u);
-  EXPECT_EQ(fake().last_config_set(CAER_HOST_CONFIG_PACKETS, CAER_HOST_CONFIG_PACKETS_MAX_CONTAINER_PACKET_SIZE), 4096u);
+  EXPECT_EQ(fake().last_config_set(CAER_HOST_CONFIG_PACKETS, CAER_HOST_CONFIG_PACKETS_MAX_CONTAINER_PACKET_SIZE),
+            4096u);
   EXPECT_EQ(fake().last_config_set(CAER_HOST_CONFIG_DATAEXCHANGE, CAER_HOST_CONFIG_DATAEXCHANGE_BUFFER_SIZE), 128u);
   EXPECT_EQ(fake().last_config_set(DAVIS_CONFIG_APS, DAVIS_CONFIG_APS_RUN), 1u);
 }
@@ -234,7 +235,8 @@ TEST_F(DavisSourceTest, OtherCameraModelIsAcceptedWithWarnings) {
   EXPECT_FALSE(fake().last_config_set(DAVIS_CONFIG_DVS, DAVIS_CONFIG_DVS_FILTER_BACKGROUND_ACTIVITY).has_value());
   EXPECT_FALSE(fake().last_config_set(DAVIS_CONFIG_DVS, DAVIS_CONFIG_DVS_FILTER_BACKGROUND_ACTIVITY_TIME).has_value());
   // ...and events outside its 240x180 array are not pixels.
-  fake().queue_events(std::vector<FakeEvent>{{10, 239, 179, true, true}, {20, 240, 10, true, true}, {30, 5, 180, false, true}});
+  fake().queue_events(
+      std::vector<FakeEvent>{{10, 239, 179, true, true}, {20, 240, 10, true, true}, {30, 5, 180, false, true}});
   const auto got = concat(drain(source));
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0], (Event{10, 239, 179, true}));

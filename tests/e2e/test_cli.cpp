@@ -1,14 +1,14 @@
 // End-to-end: the real evpipe / evconvert / evsim binaries on recorded files.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <array>
-#include <map>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <sstream>
-#include <sys/wait.h>
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
@@ -46,7 +46,9 @@ Run run(const std::string& cmd) {
   return r;
 }
 
-std::string q(const std::string& s) { return "'" + s + "'"; }
+std::string q(const std::string& s) {
+  return "'" + s + "'";
+}
 
 // Minimal extraction of a number/bool/string field from evpipe's flat --json summary.
 std::string field(const std::string& json, const std::string& key) {
@@ -212,7 +214,9 @@ TEST(Evpipe, LiveModeWithoutLibcaerSaysSo) {
 namespace {
 
 const std::string kEvsim = EVSIM_EXE;
-std::string config(const std::string& name) { return (evpipe::testing::source_dir() / "config" / name).string(); }
+std::string config(const std::string& name) {
+  return (evpipe::testing::source_dir() / "config" / name).string();
+}
 
 /// Every regular file of a folder, by name.
 std::map<std::string, std::string> files_of(const fs::path& dir) {
@@ -345,9 +349,9 @@ TEST(Evsim, TrajectoryInputReproducesTheGeneratedScene) {
   const std::string a = (dir / "a.aedat4").string();
   const std::string b = (dir / "b.aedat4").string();
   ASSERT_EQ(run(kEvsim + k3dArgs + " --seed 7 --out " + q(a)).status, 0);
-  const auto r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " +
-                     q(config("target-planar.yaml")) + " --noise-hz 1 --hot-pixels 2 --seed 7 --trajectory " +
-                     q((dir / "a.gt.csv").string()) + " --out " + q(b));
+  const auto r =
+      run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(config("target-planar.yaml")) +
+          " --noise-hz 1 --hot-pixels 2 --seed 7 --trajectory " + q((dir / "a.gt.csv").string()) + " --out " + q(b));
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_TRUE(slurp(dir / "b.gt.csv") == slurp(dir / "a.gt.csv"));
   EXPECT_TRUE(slurp(b) == slurp(a));
@@ -377,8 +381,9 @@ TEST(Evsim, TrajectoryInputReproducesTheGeneratedScene) {
 TEST(Evsim, RoadheaderDxfAndPureNoise) {
   const auto dir = evpipe::testing::temp_dir("e2e-sim3d-dxf");
   const std::string rec = (dir / "rh.aedat4").string();
-  auto r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(config("roadheader-wireframe.dxf")) +
-               " --distance-m 1.0 --duration-ms 200 --noise-hz 0 --out " + q(rec));
+  auto r =
+      run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(config("roadheader-wireframe.dxf")) +
+          " --distance-m 1.0 --duration-ms 200 --noise-hz 0 --out " + q(rec));
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_EQ(evpipe::camera::load_line_model((dir / "rh.model.yaml").string()).segments_m,
             evpipe::camera::load_line_model(config("roadheader-wireframe.dxf")).segments_m);

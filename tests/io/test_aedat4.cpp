@@ -658,9 +658,9 @@ TEST_F(Aedat4Files, ShortPacketWithoutStreamTableIsSkippedSafely) {
     Bytes c = b;
     const std::size_t at = c.size();
     c.resize(at + 8 + size);
-    put<std::int32_t>(c, at, 0);                       // stream 0
+    put<std::int32_t>(c, at, 0);  // stream 0
     put<std::int32_t>(c, at + 4, static_cast<std::int32_t>(size));
-    put<std::uint32_t>(c, at + 8, size - 4);            // a consistent size prefix
+    put<std::uint32_t>(c, at + 8, size - 4);  // a consistent size prefix
     const Decoded d = decode_bytes(c);
     EXPECT_EQ(d.events, events) << "size " << size;
     EXPECT_EQ(d.stats.skipped_non_dvs, 1u) << "size " << size;

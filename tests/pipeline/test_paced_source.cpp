@@ -39,8 +39,8 @@ EventBatchPtr batch(std::vector<std::int64_t> ts, bool disc = false, bool labell
 }  // namespace
 
 TEST(PacedSource, RecutsIntoChunksAndKeepsEveryEvent) {
-  auto inner = std::make_unique<VectorSource>(std::vector<EventBatchPtr>{
-      batch({0, 100, 999, 1000, 2500}, false, true), batch({2600, 9000}), batch({5, 7}, true)});
+  auto inner = std::make_unique<VectorSource>(std::vector<EventBatchPtr>{batch({0, 100, 999, 1000, 2500}, false, true),
+                                                                         batch({2600, 9000}), batch({5, 7}, true)});
   pipeline::PacedSource paced(std::move(inner), 1000.0, 1000);  // 1000x: 9 ms of events take ~9 us
   std::vector<std::vector<std::int64_t>> chunks;
   std::vector<bool> disc;

@@ -21,8 +21,8 @@ TEST(MergeLabelled, TimeOrderSignalFirstAtEqualTimes) {
 
 TEST(EventFrame, LastPolarityInTheWindowWins) {
   const SensorGeometry g{4, 3};
-  const std::vector<Event> ev = {{0, 0, 0, true},   {10, 1, 1, true}, {15, 1, 1, false}, {19, 3, 2, true},
-                                 {20, 2, 2, false}, {25, 9, 9, true}};
+  const std::vector<Event> ev = {{0, 0, 0, true},  {10, 1, 1, true},  {15, 1, 1, false},
+                                 {19, 3, 2, true}, {20, 2, 2, false}, {25, 9, 9, true}};
   const auto f = sim::event_frame(ev, g, 10, 20);  // [10, 20): not t = 0, not t = 20; (9, 9) is outside
   ASSERT_EQ(f.size(), 12U);
   std::vector<std::int8_t> expected(12, 0);

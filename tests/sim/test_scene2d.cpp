@@ -69,4 +69,6 @@ TEST(Scene2D, TranslatingRectangleEventCount) {
   EXPECT_NEAR(static_cast<double>(ev.size() - on), 12.0 * rows, 0.1 * 12.0 * rows);
 }
 
-TEST(Scene2D, UnknownSceneIsRejected) { EXPECT_THROW(sim::named_scene("nope"), std::invalid_argument); }
+TEST(Scene2D, UnknownSceneIsRejected) {
+  EXPECT_THROW(sim::named_scene("nope"), std::invalid_argument);
+}

@@ -50,7 +50,7 @@ TEST(Target3D, EverySignalEventLiesWithinOnePointFivePixelsOfAProjectedSegment) 
   const Eigen::Quaterniond side_view(Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX()) *
                                      Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()));
   for (const auto& [file, R] : {std::pair{std::string("target-planar.yaml"), Eigen::Quaterniond::Identity()},
-                               std::pair{std::string("roadheader-wireframe.yaml"), side_view}}) {
+                                std::pair{std::string("roadheader-wireframe.yaml"), side_view}}) {
     const std::uint64_t seed = 42;
     SCOPED_TRACE(::testing::Message() << file << " seed=" << seed);
     Fixture fx(file, file == "target-planar.yaml" ? 0.8 : 1.6, R, seed);
@@ -164,8 +164,8 @@ TEST(View, LookAtZUpPutsTheModelUprightAndFacesTheRightSide) {
   const auto planar = camera::load_line_model((cfg / "target-planar.yaml").string());
   EXPECT_TRUE(sim::default_view(planar).coeffs() == Eigen::Quaterniond::Identity().coeffs());
   const auto rh = camera::load_line_model((cfg / "roadheader-wireframe.yaml").string());
-  EXPECT_TRUE(sim::default_view(rh).isApprox(sim::look_at_z_up(sim::kDefaultViewAzimuth_deg,
-                                                               sim::kDefaultViewElevation_deg)));
+  EXPECT_TRUE(
+      sim::default_view(rh).isApprox(sim::look_at_z_up(sim::kDefaultViewAzimuth_deg, sim::kDefaultViewElevation_deg)));
   // The default view of the roadheader at 1 m: the whole machine inside the image.
   const auto cam = camera::load_camera((cfg / "davis346.yaml").string());
   const auto T = sim::facing_pose(rh, 1.0, sim::default_view(rh));

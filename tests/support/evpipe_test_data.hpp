@@ -3,15 +3,21 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <string>
-#include <unistd.h>
 
 namespace evpipe::testing {
 
-inline std::filesystem::path shared_data_dir() { return EVPIPE_SHARED_DATA_DIR; }
-inline std::filesystem::path source_dir() { return EVPIPE_SOURCE_DIR; }
-inline std::filesystem::path binary_dir() { return EVPIPE_BINARY_DIR; }
+inline std::filesystem::path shared_data_dir() {
+  return EVPIPE_SHARED_DATA_DIR;
+}
+inline std::filesystem::path source_dir() {
+  return EVPIPE_SOURCE_DIR;
+}
+inline std::filesystem::path binary_dir() {
+  return EVPIPE_BINARY_DIR;
+}
 
 /// Path of a real recording, e.g. real("davis346-faery/davis346.aedat4"); empty when absent.
 inline std::string real(const std::string& rel) {
@@ -21,8 +27,7 @@ inline std::string real(const std::string& rel) {
 
 /// A fresh temporary directory for one test.
 inline std::filesystem::path temp_dir(const std::string& tag) {
-  auto d = std::filesystem::temp_directory_path() /
-           ("evpipe-test-" + tag + "-" + std::to_string(::getpid()));
+  auto d = std::filesystem::temp_directory_path() / ("evpipe-test-" + tag + "-" + std::to_string(::getpid()));
   std::filesystem::create_directories(d);
   return d;
 }

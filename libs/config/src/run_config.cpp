@@ -2,8 +2,8 @@
 
 #include <yaml-cpp/yaml.h>
 
-#include <cmath>
 #include <fmt/format.h>
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -67,24 +67,28 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
   try {
     root = YAML::Load(yaml_text);
   } catch (const YAML::ParserException& e) {
-    throw ConfigError(fmt::format("{}: line {}, column {}: YAML syntax error: {}", name, e.mark.line + 1,
-                                  e.mark.column + 1, e.msg));
+    throw ConfigError(
+        fmt::format("{}: line {}, column {}: YAML syntax error: {}", name, e.mark.line + 1, e.mark.column + 1, e.msg));
   }
   RunConfig c;
   if (!root || root.IsNull()) return c;
   if (!root.IsMap()) fail(name, "<top level>", "expected a map of sections");
 
   auto str = [&](std::string& dst) {
-    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<std::string>(n, name, k, "a string"); };
+    return
+        [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<std::string>(n, name, k, "a string"); };
   };
   auto i64 = [&](std::int64_t& dst) {
-    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<std::int64_t>(n, name, k, "an integer"); };
+    return [&dst, &name](const YAML::Node& n, const std::string& k) {
+      dst = scalar<std::int64_t>(n, name, k, "an integer");
+    };
   };
   auto integer = [&](int& dst) {
     return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<int>(n, name, k, "an integer"); };
   };
   auto boolean = [&](bool& dst) {
-    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<bool>(n, name, k, "true or false"); };
+    return
+        [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<bool>(n, name, k, "true or false"); };
   };
 
   for (const auto& kv : root) {
@@ -97,8 +101,8 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
                     {{"replay", str(c.source.replay)},
                      {"speed",
                       [&](const YAML::Node& n, const std::string& k) {
-                        c.source.speed = parse_speed(scalar<std::string>(n, name, k, "a number or 'max'"),
-                                                     name + ": " + k);
+                        c.source.speed =
+                            parse_speed(scalar<std::string>(n, name, k, "a number or 'max'"), name + ": " + k);
                       }},
                      {"batch_events", i64(c.source.batch_events)},
                      {"drop_out_of_order", boolean(c.source.drop_out_of_order)},
@@ -117,8 +121,7 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
                      {"container_interval_us", i64(c.device.container_interval_us)},
                      {"reconnect_interval_ms", i64(c.device.reconnect_interval_ms)}});
     } else if (section == "window") {
-      apply_section(node, name, section,
-                    {{"length_us", i64(c.window.length_us)}, {"hop_us", i64(c.window.hop_us)}});
+      apply_section(node, name, section, {{"length_us", i64(c.window.length_us)}, {"hop_us", i64(c.window.hop_us)}});
     } else if (section == "pose") {
       apply_section(node, name, section,
                     {{"camera", str(c.pose.camera)},
@@ -152,7 +155,8 @@ void RunConfig::validate() const {
   static const char* levels[] = {"trace", "debug", "info", "warn", "error", "critical", "off"};
   bool level_ok = false;
   for (const char* l : levels) level_ok = level_ok || log.level == l;
-  check(level_ok, "log.level", fmt::format("'{}' is not one of trace, debug, info, warn, error, critical, off", log.level));
+  check(level_ok, "log.level",
+        fmt::format("'{}' is not one of trace, debug, info, warn, error, critical, off", log.level));
   check(!source.speed || *source.speed > 0, "source.speed", "must be > 0 or 'max'");
   check(source.batch_events >= 1 && source.batch_events <= 10'000'000, "source.batch_events",
         fmt::format("must be in [1, 10000000], got {}", source.batch_events));
@@ -161,9 +165,9 @@ void RunConfig::validate() const {
   check(source.default_height > 0 && source.default_height <= 32768, "source.default_height", "must be in [1, 32768]");
   for (const auto& [key, value] : {std::pair{"device.ba_filter_time_us", device.ba_filter_time_us},
                                    std::pair{"device.refractory_time_us", device.refractory_time_us}})
-    check(value >= 0 && value <= 4095 * 250 && value % 250 == 0, key,
-          fmt::format("must be a multiple of 250 in [0, {}] (the FPGA counts 250 us steps), got {}", 4095 * 250,
-                      value));
+    check(
+        value >= 0 && value <= 4095 * 250 && value % 250 == 0, key,
+        fmt::format("must be a multiple of 250 in [0, {}] (the FPGA counts 250 us steps), got {}", 4095 * 250, value));
   check(device.container_interval_us >= 100 && device.container_interval_us <= 1'000'000,
         "device.container_interval_us", "must be in [100, 1000000]");
   check(device.reconnect_interval_ms >= 10, "device.reconnect_interval_ms", "must be >= 10");

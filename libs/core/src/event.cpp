@@ -14,6 +14,8 @@ std::string locate(const std::string& file, std::optional<std::uint64_t> offset,
 FormatError::FormatError(std::string file, std::optional<std::uint64_t> offset, const std::string& what)
     : SourceError(locate(file, offset, what)), file_(std::move(file)), offset_(offset), reason_(what) {}
 
-std::string Warning::message() const { return locate(file, offset, what); }
+std::string Warning::message() const {
+  return locate(file, offset, what);
+}
 
 }  // namespace evpipe

@@ -18,8 +18,7 @@ std::vector<Event> EventWindow::contiguous() const {
   return out;
 }
 
-TimeSlicer::TimeSlicer(Options options, Callback callback)
-    : options_(options), callback_(std::move(callback)) {
+TimeSlicer::TimeSlicer(Options options, Callback callback) : options_(options), callback_(std::move(callback)) {
   if (options_.window_us <= 0) throw std::invalid_argument("TimeSlicer: window_us must be > 0");
   if (options_.hop_us <= 0) throw std::invalid_argument("TimeSlicer: hop_us must be > 0");
   next_t0_ = options_.start_us;
@@ -85,8 +84,7 @@ void TimeSlicer::emit_window(std::int64_t t0, std::int64_t t1) {
   win.t1_us = t1;
   for (const auto& b : retained_) {
     const auto& ev = b->events;
-    auto lo = std::lower_bound(ev.begin(), ev.end(), t0,
-                               [](const Event& e, std::int64_t t) { return e.t_us < t; });
+    auto lo = std::lower_bound(ev.begin(), ev.end(), t0, [](const Event& e, std::int64_t t) { return e.t_us < t; });
     auto hi = std::lower_bound(lo, ev.end(), t1, [](const Event& e, std::int64_t t) { return e.t_us < t; });
     if (lo != hi) {
       win.parts.emplace_back(&*lo, static_cast<std::size_t>(hi - lo));

@@ -22,7 +22,7 @@ namespace evpipe::device {
 
 namespace {
 
-constexpr std::int64_t kFilterUnitUs = 250;    // DVS filter times are sent in 250 µs units
+constexpr std::int64_t kFilterUnitUs = 250;     // DVS filter times are sent in 250 µs units
 constexpr std::int64_t kFilterMaxUnits = 4095;  // 12-bit register
 constexpr int kMaxContainersPerNext = 64;       // bound the work of one next() call (e.g. only special events)
 constexpr std::string_view kRingDropText = "Dropped EventPacket Container because ring-buffer full";
@@ -84,10 +84,14 @@ void caer_log_trampoline(const char* msg, std::size_t length) {
   handler(level, text);
 }
 
-void install_trampoline() { caerLogCallbackSet(&caer_log_trampoline); }
+void install_trampoline() {
+  caerLogCallbackSet(&caer_log_trampoline);
+}
 
 // libcaer calls this from its USB thread on an exceptional shutdown (unplug, transfer failure).
-void on_data_shutdown(void* flag) { static_cast<std::atomic<bool>*>(flag)->store(true, std::memory_order_release); }
+void on_data_shutdown(void* flag) {
+  static_cast<std::atomic<bool>*>(flag)->store(true, std::memory_order_release);
+}
 
 std::string open_error_reason(int error) {
   switch (error) {
@@ -131,14 +135,22 @@ bool using_real_libcaer() noexcept {
 
 std::string_view log_level_name(LogLevel level) noexcept {
   switch (level) {
-    case LogLevel::emergency: return "emergency";
-    case LogLevel::alert: return "alert";
-    case LogLevel::critical: return "critical";
-    case LogLevel::error: return "error";
-    case LogLevel::warning: return "warning";
-    case LogLevel::notice: return "notice";
-    case LogLevel::info: return "info";
-    case LogLevel::debug: return "debug";
+    case LogLevel::emergency:
+      return "emergency";
+    case LogLevel::alert:
+      return "alert";
+    case LogLevel::critical:
+      return "critical";
+    case LogLevel::error:
+      return "error";
+    case LogLevel::warning:
+      return "warning";
+    case LogLevel::notice:
+      return "notice";
+    case LogLevel::info:
+      return "info";
+    case LogLevel::debug:
+      return "debug";
   }
   return "unknown";
 }
@@ -158,9 +170,12 @@ void set_libcaer_log_handler(LogHandler handler, LogLevel max_level) {
 
 std::string_view state_name(DeviceState state) noexcept {
   switch (state) {
-    case DeviceState::connected: return "connected";
-    case DeviceState::disconnected: return "disconnected";
-    case DeviceState::closed: return "closed";
+    case DeviceState::connected:
+      return "connected";
+    case DeviceState::disconnected:
+      return "disconnected";
+    case DeviceState::closed:
+      return "closed";
   }
   return "unknown";
 }
@@ -171,9 +186,10 @@ std::uint32_t filter_time_units(std::int64_t time_us, std::string_view field) {
                                             field, time_us, kFilterMaxUnits * kFilterUnitUs));
   }
   if (time_us % kFilterUnitUs != 0) {
-    throw std::invalid_argument(fmt::format(
-        "DavisOptions.{} = {} µs is not a multiple of {} µs (the camera's filter time unit); use {} or {}", field,
-        time_us, kFilterUnitUs, time_us / kFilterUnitUs * kFilterUnitUs, (time_us / kFilterUnitUs + 1) * kFilterUnitUs));
+    throw std::invalid_argument(
+        fmt::format("DavisOptions.{} = {} µs is not a multiple of {} µs (the camera's filter time unit); use {} or {}",
+                    field, time_us, kFilterUnitUs, time_us / kFilterUnitUs * kFilterUnitUs,
+                    (time_us / kFilterUnitUs + 1) * kFilterUnitUs));
   }
   return static_cast<std::uint32_t>(time_us / kFilterUnitUs);
 }
@@ -253,11 +269,13 @@ struct DavisSource::Impl {
   std::optional<std::string> open_and_start() {
     const std::string& serial = opt.serial_number;
     errno = 0;
-    caerDeviceHandle h = caerDeviceOpen(opt.device_id, CAER_DEVICE_DAVIS, 0, 0, serial.empty() ? nullptr : serial.c_str());
+    caerDeviceHandle h =
+        caerDeviceOpen(opt.device_id, CAER_DEVICE_DAVIS, 0, 0, serial.empty() ? nullptr : serial.c_str());
     if (h == nullptr) {
-      return fmt::format("cannot open {}: {}",
-                         serial.empty() ? std::string("a DAVIS camera") : "the DAVIS camera with serial number " + serial,
-                         open_error_reason(errno));
+      return fmt::format(
+          "cannot open {}: {}",
+          serial.empty() ? std::string("a DAVIS camera") : "the DAVIS camera with serial number " + serial,
+          open_error_reason(errno));
     }
     auto fail = [&](std::string why) -> std::optional<std::string> {
       caerDeviceClose(&h);
@@ -277,7 +295,8 @@ struct DavisSource::Impl {
     d.geometry = SensorGeometry{ci.dvsSizeX, ci.dvsSizeY};
     const std::string name = "DAVIS camera SN " + d.serial_number;
     if (d.geometry.width <= 0 || d.geometry.height <= 0) {
-      return fail(fmt::format("{} reported an invalid DVS array size {}x{}", name, d.geometry.width, d.geometry.height));
+      return fail(
+          fmt::format("{} reported an invalid DVS array size {}x{}", name, d.geometry.width, d.geometry.height));
     }
     if (ever_connected && d.geometry != device.geometry) {
       return fail(fmt::format("{} has a {}x{} DVS array, but the stream so far came from a {}x{} one; not using it",
@@ -290,12 +309,14 @@ struct DavisSource::Impl {
     }
 
     // Nothing is configured automatically: defaults first, then our changes on top (libcaer's order).
-    if (!caerDeviceSendDefaultConfig(h)) return fail(fmt::format("sending the default configuration to {} failed", name));
+    if (!caerDeviceSendDefaultConfig(h))
+      return fail(fmt::format("sending the default configuration to {} failed", name));
 
     std::optional<std::string> config_error;
     auto set = [&](std::int8_t module, std::uint8_t param, std::uint32_t value) {
       if (!config_error && !caerDeviceConfigSet(h, module, param, value)) {
-        config_error = fmt::format("configuring {} failed (module {}, parameter {}, value {})", name, module, param, value);
+        config_error =
+            fmt::format("configuring {} failed (module {}, parameter {}, value {})", name, module, param, value);
       }
     };
     // NOTICE at least for this camera, so libcaer's "ring-buffer full" drops reach the trampoline.
@@ -313,9 +334,10 @@ struct DavisSource::Impl {
       set(DAVIS_CONFIG_DVS, DAVIS_CONFIG_DVS_FILTER_REFRACTORY_PERIOD_TIME,
           filter_time_units(opt.refractory_time_us, "refractory_time_us"));
     } else if (opt.ba_filter_enabled || opt.refractory_enabled) {
-      warn(fmt::format("{} has no hardware background-activity / refractory filter (e.g. a DAVIS240C); the "
-                       "ba_filter / refractory options are ignored: use a software filter instead",
-                       name));
+      warn(
+          fmt::format("{} has no hardware background-activity / refractory filter (e.g. a DAVIS240C); the "
+                      "ba_filter / refractory options are ignored: use a software filter instead",
+                      name));
     }
     set(CAER_HOST_CONFIG_PACKETS, CAER_HOST_CONFIG_PACKETS_MAX_CONTAINER_INTERVAL,
         static_cast<std::uint32_t>(opt.container_interval_us));
@@ -381,8 +403,7 @@ struct DavisSource::Impl {
     pending_discontinuity = true;
     have_last_t = false;
     ++stats.discontinuities;
-    warn(fmt::format("{} reconnected; device time restarted (the next batch has discontinuity_before)",
-                     camera_name()));
+    warn(fmt::format("{} reconnected; device time restarted (the next batch has discontinuity_before)", camera_name()));
     return true;
   }
 
@@ -460,7 +481,8 @@ struct DavisSource::Impl {
       if (header == nullptr) continue;
       const std::int32_t number = std::max<std::int32_t>(0, caerEventPacketHeaderGetEventNumber(header));
       const std::int32_t size = std::max<std::int32_t>(0, caerEventPacketHeaderGetEventSize(header));
-      stats.bytes_read += CAER_EVENT_PACKET_HEADER_SIZE + static_cast<std::uint64_t>(number) * static_cast<std::uint64_t>(size);
+      stats.bytes_read +=
+          CAER_EVENT_PACKET_HEADER_SIZE + static_cast<std::uint64_t>(number) * static_cast<std::uint64_t>(size);
       const auto type = caerEventPacketHeaderGetEventType(header);
       if (type == POLARITY_EVENT) {
         convert_polarity(header, batch);
@@ -505,7 +527,9 @@ DavisSource::DavisSource(DavisOptions options) : impl_(std::make_unique<Impl>())
   if (auto error = m.open_and_start()) throw SourceError(*error);
 }
 
-DavisSource::~DavisSource() { close(); }
+DavisSource::~DavisSource() {
+  close();
+}
 
 EventBatchPtr DavisSource::next() {
   Impl& m = *impl_;
@@ -534,19 +558,33 @@ EventBatchPtr DavisSource::next() {
   return batch;
 }
 
-bool DavisSource::finished() const { return impl_->state == DeviceState::closed; }
+bool DavisSource::finished() const {
+  return impl_->state == DeviceState::closed;
+}
 
-const SourceInfo& DavisSource::info() const { return impl_->info; }
+const SourceInfo& DavisSource::info() const {
+  return impl_->info;
+}
 
-const SourceStats& DavisSource::stats() const { return impl_->stats; }
+const SourceStats& DavisSource::stats() const {
+  return impl_->stats;
+}
 
-DeviceState DavisSource::state() const noexcept { return impl_->state; }
+DeviceState DavisSource::state() const noexcept {
+  return impl_->state;
+}
 
-const DavisDeviceInfo& DavisSource::device_info() const noexcept { return impl_->device; }
+const DavisDeviceInfo& DavisSource::device_info() const noexcept {
+  return impl_->device;
+}
 
-const DavisOptions& DavisSource::options() const noexcept { return impl_->opt; }
+const DavisOptions& DavisSource::options() const noexcept {
+  return impl_->opt;
+}
 
-std::uint64_t DavisSource::reconnects() const noexcept { return impl_->reconnects; }
+std::uint64_t DavisSource::reconnects() const noexcept {
+  return impl_->reconnects;
+}
 
 bool DavisSource::try_reconnect() {
   Impl& m = *impl_;

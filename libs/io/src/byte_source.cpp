@@ -1,8 +1,8 @@
 #include "evpipe/io/byte_source.hpp"
 
+#include <fmt/format.h>
 #include <cerrno>
 #include <cstring>
-#include <fmt/format.h>
 
 #include "evpipe/core/error.hpp"
 
@@ -58,7 +58,8 @@ class FileSource final : public ByteSource {
 class MemorySource final : public ByteSource {
  public:
   MemorySource(std::span<const std::byte> view, std::vector<std::byte> owned, std::string name)
-      : owned_(std::move(owned)), data_(owned_.empty() ? view : std::span<const std::byte>(owned_)),
+      : owned_(std::move(owned)),
+        data_(owned_.empty() ? view : std::span<const std::byte>(owned_)),
         name_(std::move(name)) {}
 
   std::size_t read(std::span<std::byte> dst) override {

@@ -30,8 +30,8 @@ class TimeOrder {
     const std::uint64_t back_us = static_cast<std::uint64_t>(*last_) - static_cast<std::uint64_t>(t_us);
     if (options_.discontinuity_us < 0 || back_us > static_cast<std::uint64_t>(options_.discontinuity_us)) {
       ++stats_.discontinuities;
-      warn(offset, "timestamp jumps back by " + std::to_string(back_us) +
-                       " us: treated as a clock reset (discontinuity)");
+      warn(offset,
+           "timestamp jumps back by " + std::to_string(back_us) + " us: treated as a clock reset (discontinuity)");
       last_ = t_us;
       return Verdict::keep_after_discontinuity;
     }

@@ -1,19 +1,24 @@
 #include "evpipe/io/reader.hpp"
 
+#include <fmt/format.h>
 #include <array>
 #include <cstring>
-#include <fmt/format.h>
 #include <string_view>
 
 namespace evpipe::io {
 
 std::string_view format_name(Format f) noexcept {
   switch (f) {
-    case Format::aedat2: return "aedat2";
-    case Format::aedat31: return "aedat3.1";
-    case Format::aedat4: return "aedat4";
-    case Format::text: return "text";
-    case Format::unknown: break;
+    case Format::aedat2:
+      return "aedat2";
+    case Format::aedat31:
+      return "aedat3.1";
+    case Format::aedat4:
+      return "aedat4";
+    case Format::text:
+      return "text";
+    case Format::unknown:
+      break;
   }
   return "unknown";
 }
@@ -44,8 +49,8 @@ Format detect_format(std::span<const std::byte> head, std::string* why) {
   if (starts_with(head, "#!AER-DAT4.0")) return Format::aedat4;
   if (starts_with(head, "#!AER-DAT")) {
     std::string version;
-    for (std::size_t i = 9; i < head.size() && i < 16 && is_text_byte(head[i]) &&
-                            static_cast<char>(head[i]) != '\r' && static_cast<char>(head[i]) != '\n';
+    for (std::size_t i = 9; i < head.size() && i < 16 && is_text_byte(head[i]) && static_cast<char>(head[i]) != '\r' &&
+                            static_cast<char>(head[i]) != '\n';
          ++i)
       version += static_cast<char>(head[i]);
     say(fmt::format("AEDAT version '{}' is not supported", version));
@@ -111,15 +116,19 @@ std::unique_ptr<FileReader> open_reader(std::unique_ptr<ByteSource> source, Read
   if (!source->seek(0)) throw FormatError(source->name(), std::nullopt, "cannot rewind the input");
   std::string why;
   switch (detect_format(std::span(buf.data(), n), &why)) {
-    case Format::aedat2: return make_aedat2_reader(std::move(source), std::move(options));
-    case Format::aedat31: return make_aedat31_reader(std::move(source), std::move(options));
-    case Format::aedat4: return make_aedat4_reader(std::move(source), std::move(options));
-    case Format::text: return make_text_reader(std::move(source), std::move(options));
-    case Format::unknown: break;
+    case Format::aedat2:
+      return make_aedat2_reader(std::move(source), std::move(options));
+    case Format::aedat31:
+      return make_aedat31_reader(std::move(source), std::move(options));
+    case Format::aedat4:
+      return make_aedat4_reader(std::move(source), std::move(options));
+    case Format::text:
+      return make_text_reader(std::move(source), std::move(options));
+    case Format::unknown:
+      break;
   }
   throw FormatError(source->name(), 0,
-                    fmt::format("unrecognised content: {} (evpipe reads AEDAT 2.0, 3.1, 4.0 and text 't x y p')",
-                                why));
+                    fmt::format("unrecognised content: {} (evpipe reads AEDAT 2.0, 3.1, 4.0 and text 't x y p')", why));
 }
 
 std::unique_ptr<FileReader> open_reader(const std::string& path, ReaderOptions options) {

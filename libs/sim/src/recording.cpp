@@ -25,8 +25,8 @@ std::vector<std::int8_t> event_frame(EventSpan events, const SensorGeometry& g, 
                                      std::int64_t t1_us) {
   std::vector<std::int8_t> frame(g.pixels(), 0);
   // Events are time-ordered: find the window by binary search, then the last event per pixel wins.
-  const auto first = std::lower_bound(events.begin(), events.end(), t0_us,
-                                      [](const Event& e, std::int64_t t) { return e.t_us < t; });
+  const auto first =
+      std::lower_bound(events.begin(), events.end(), t0_us, [](const Event& e, std::int64_t t) { return e.t_us < t; });
   for (auto it = first; it != events.end() && it->t_us < t1_us; ++it) {
     if (!g.contains(it->x, it->y)) continue;
     frame[static_cast<std::size_t>(it->y) * static_cast<std::size_t>(g.width) + it->x] = it->polarity ? 1 : -1;

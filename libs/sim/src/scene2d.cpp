@@ -48,7 +48,9 @@ bool inside(const Placed& q, double x, double y) noexcept {
 
 }  // namespace
 
-bool MovingPolygon::contains(double x, double y, double t_s) const noexcept { return inside(place(*this, t_s), x, y); }
+bool MovingPolygon::contains(double x, double y, double t_s) const noexcept {
+  return inside(place(*this, t_s), x, y);
+}
 
 double MovingPolygon::radius_px() const noexcept {
   double r = 0;
@@ -134,7 +136,9 @@ std::vector<Event> render(const Scene2D& scene, std::int64_t t0_us, std::int64_t
   return out;
 }
 
-std::vector<std::string> scene_names() { return {"rotating-bar", "translating-rect", "demo"}; }
+std::vector<std::string> scene_names() {
+  return {"rotating-bar", "translating-rect", "demo"};
+}
 
 Scene2D named_scene(const std::string& name, double speed, SensorGeometry geometry) {
   Scene2D scene;

@@ -65,15 +65,14 @@ std::vector<Event> render_target(const TargetScene& scene, std::int64_t t0_us, s
   // Normalised undistorted coordinates of every pixel centre.
   std::vector<Vector2d> norm(static_cast<std::size_t>(W) * static_cast<std::size_t>(H));
   for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      norm[static_cast<std::size_t>(y) * W + x] = cam.pixel_to_normalised(Vector2d(x, y));
+    for (int x = 0; x < W; ++x) norm[static_cast<std::size_t>(y) * W + x] = cam.pixel_to_normalised(Vector2d(x, y));
 
   const int levels = std::max(1, static_cast<int>(std::floor(e.contrast_log / e.threshold_log + 1e-9)));
   // Offsets from the edge line (pixels) at which the ramp has changed a pixel by k thresholds.
   std::vector<double> offsets_px;
   for (int k = 1; k <= levels; ++k) offsets_px.push_back(((k - 0.5) / levels - 0.5) * e.blur_px);
   const double f = 0.5 * (cam.fx + cam.fy);  // normalised → pixel scale for the small offsets
-  std::vector<int> bright_side;               // +1: the positive side of the line is bright
+  std::vector<int> bright_side;              // +1: the positive side of the line is bright
   std::bernoulli_distribution coin(0.5);
   for (std::size_t i = 0; i < scene.model.segments_m.size(); ++i) bright_side.push_back(coin(rng) ? 1 : -1);
 
@@ -181,8 +180,7 @@ std::vector<Event> render_target(const TargetScene& scene, std::int64_t t0_us, s
     if (ev.t_us - l < e.refractory_us) continue;
     l = ev.t_us;
     Event j = ev;
-    if (e.jitter_us > 0)
-      j.t_us = std::clamp<std::int64_t>(ev.t_us + std::llround(jitter(rng)), t0_us, t1_us - 1);
+    if (e.jitter_us > 0) j.t_us = std::clamp<std::int64_t>(ev.t_us + std::llround(jitter(rng)), t0_us, t1_us - 1);
     kept.push_back(j);
   }
   std::stable_sort(kept.begin(), kept.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
@@ -220,18 +218,19 @@ std::vector<camera::StampedPose> generate_motion(std::int64_t t0_us, std::int64_
     double v[6];
     for (int a = 0; a < 6; ++a) {
       v[a] = 0;
-      for (int k = 0; k < 3; ++k) v[a] += axes[a].amp / 3.0 * std::sin(2.0 * std::numbers::pi * axes[a].f[k] * ts + axes[a].ph[k]);
+      for (int k = 0; k < 3; ++k)
+        v[a] += axes[a].amp / 3.0 * std::sin(2.0 * std::numbers::pi * axes[a].f[k] * ts + axes[a].ph[k]);
     }
     const Eigen::Vector3d rv(v[3], v[4], v[5]);
     const double angle = rv.norm();
-    const Eigen::Quaterniond dq = angle > 1e-15 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, rv / angle))
-                                                : Eigen::Quaterniond::Identity();
+    const Eigen::Quaterniond dq =
+        angle > 1e-15 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, rv / angle)) : Eigen::Quaterniond::Identity();
     camera::StampedPose sp;
     sp.t_us = t;
     // Turn about the pivot (it stays put but for the translation) and translate in the camera frame.
     sp.pose.q_cam_model = (dq * o.base.q_cam_model).normalized();
-    sp.pose.t_cam_model_m = o.base.apply(o.pivot_model_m) + Eigen::Vector3d(v[0], v[1], v[2]) -
-                            sp.pose.q_cam_model * o.pivot_model_m;
+    sp.pose.t_cam_model_m =
+        o.base.apply(o.pivot_model_m) + Eigen::Vector3d(v[0], v[1], v[2]) - sp.pose.q_cam_model * o.pivot_model_m;
     out.push_back(sp);
   }
   return out;
@@ -261,7 +260,7 @@ Eigen::Quaterniond look_at_z_up(double azimuth_deg, double elevation_deg) {
   const Eigen::Vector3d towards_camera(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
   const Eigen::Vector3d forward = -towards_camera;
   const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();  // x right
-  const Eigen::Vector3d down = forward.cross(right);                                  // y down
+  const Eigen::Vector3d down = forward.cross(right);                                   // y down
   Eigen::Matrix3d R_model_cam;
   R_model_cam.col(0) = right;
   R_model_cam.col(1) = down;

@@ -23,14 +23,14 @@ struct LogConfig {
 };
 
 struct SourceConfig {
-  std::string replay;                 ///< recording to replay; empty = live camera
-  std::optional<double> speed = 1.0;  ///< replay pace factor; nullopt = "max" (as fast as possible)
-  std::int64_t batch_events = 8192;   ///< events per batch read from a file
-  bool drop_out_of_order = true;      ///< drop events whose t_us goes backwards (else keep and count)
+  std::string replay;                         ///< recording to replay; empty = live camera
+  std::optional<double> speed = 1.0;          ///< replay pace factor; nullopt = "max" (as fast as possible)
+  std::int64_t batch_events = 8192;           ///< events per batch read from a file
+  bool drop_out_of_order = true;              ///< drop events whose t_us goes backwards (else keep and count)
   std::int64_t discontinuity_us = 1'000'000;  ///< backward jump treated as a clock reset
-  int default_width = 346;            ///< sensor size when the file does not state it
+  int default_width = 346;                    ///< sensor size when the file does not state it
   int default_height = 260;
-  bool aedat2_flip_y = true;          ///< jAER bottom-left origin → top-left
+  bool aedat2_flip_y = true;  ///< jAER bottom-left origin → top-left
   bool aedat2_flip_x = false;
 };
 

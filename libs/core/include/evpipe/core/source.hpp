@@ -21,17 +21,17 @@ struct SourceInfo {
 /// Counters every source keeps. Recoverable problems are counted here (and reported as warnings),
 /// fatal ones are thrown.
 struct SourceStats {
-  std::uint64_t events = 0;              ///< events delivered
-  std::uint64_t batches = 0;             ///< batches delivered
-  std::uint64_t bytes_read = 0;          ///< bytes consumed from the file / device
-  std::uint64_t skipped_non_dvs = 0;     ///< APS/IMU/trigger/special words or packets skipped
-  std::uint64_t out_of_order = 0;        ///< events with t_us < previous t_us (dropped or kept per policy)
-  std::uint64_t discontinuities = 0;     ///< clock resets / large backward jumps
-  std::uint64_t corrupt_packets = 0;     ///< packets skipped as unreadable (rest of the file still read)
-  std::uint64_t dropped_packets = 0;     ///< live: whole packets dropped because a consumer was full
-  std::uint64_t dropped_events = 0;      ///< live: events in those packets
-  std::uint64_t invalid_events = 0;      ///< events with the valid bit cleared (AEDAT 3.1 / libcaer)
-  std::uint64_t truncated_bytes = 0;     ///< bytes of a trailing partial record / packet ignored
+  std::uint64_t events = 0;           ///< events delivered
+  std::uint64_t batches = 0;          ///< batches delivered
+  std::uint64_t bytes_read = 0;       ///< bytes consumed from the file / device
+  std::uint64_t skipped_non_dvs = 0;  ///< APS/IMU/trigger/special words or packets skipped
+  std::uint64_t out_of_order = 0;     ///< events with t_us < previous t_us (dropped or kept per policy)
+  std::uint64_t discontinuities = 0;  ///< clock resets / large backward jumps
+  std::uint64_t corrupt_packets = 0;  ///< packets skipped as unreadable (rest of the file still read)
+  std::uint64_t dropped_packets = 0;  ///< live: whole packets dropped because a consumer was full
+  std::uint64_t dropped_events = 0;   ///< live: events in those packets
+  std::uint64_t invalid_events = 0;   ///< events with the valid bit cleared (AEDAT 3.1 / libcaer)
+  std::uint64_t truncated_bytes = 0;  ///< bytes of a trailing partial record / packet ignored
 };
 
 class EventSource {

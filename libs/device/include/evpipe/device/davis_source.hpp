@@ -33,7 +33,16 @@ namespace evpipe::device {
 [[nodiscard]] bool using_real_libcaer() noexcept;
 
 /// libcaer's syslog-style levels (same numbers as enum caer_log_level).
-enum class LogLevel : int { emergency = 0, alert = 1, critical = 2, error = 3, warning = 4, notice = 5, info = 6, debug = 7 };
+enum class LogLevel : int {
+  emergency = 0,
+  alert = 1,
+  critical = 2,
+  error = 3,
+  warning = 4,
+  notice = 5,
+  info = 6,
+  debug = 7
+};
 
 [[nodiscard]] std::string_view log_level_name(LogLevel level) noexcept;
 

@@ -20,10 +20,10 @@ namespace evpipe::sim {
 /// velocity and the polygon turns about it at constant angular speed.
 struct MovingPolygon {
   std::vector<std::pair<double, double>> vertices_px;  ///< counter-clockwise or clockwise, convex
-  double cx_px = 0, cy_px = 0;                          ///< centre at t = 0
-  double vx_px_s = 0, vy_px_s = 0;                      ///< velocity of the centre
-  double angle0_rad = 0;                                ///< rotation at t = 0
-  double omega_rad_s = 0;                               ///< angular speed
+  double cx_px = 0, cy_px = 0;                         ///< centre at t = 0
+  double vx_px_s = 0, vy_px_s = 0;                     ///< velocity of the centre
+  double angle0_rad = 0;                               ///< rotation at t = 0
+  double omega_rad_s = 0;                              ///< angular speed
 
   [[nodiscard]] bool contains(double x, double y, double t_s) const noexcept;
   /// Largest distance from the centre to a vertex.

@@ -50,15 +50,15 @@ std::vector<Event> render_target(const TargetScene& scene, std::int64_t t0_us, s
 /// of three sinusoids with random frequencies in [min_freq_hz, max_freq_hz] and phases, scaled so that the
 /// excursion stays within ±range and the speed within max_speed (both checked on the generated samples).
 struct MotionOptions {
-  camera::Pose base;                     ///< T_cam_model at the centre of the motion
+  camera::Pose base;                                        ///< T_cam_model at the centre of the motion
   Eigen::Vector3d pivot_model_m = Eigen::Vector3d::Zero();  ///< rotations turn about this model point
-  double range_m = 0.08;                 ///< max |excursion| per axis
-  double range_deg = 10.0;               ///< max |rotation-vector component|
-  double max_speed_m_s = 0.15;           ///< max translational speed (bounds the amplitude·frequency)
+  double range_m = 0.08;                                    ///< max |excursion| per axis
+  double range_deg = 10.0;                                  ///< max |rotation-vector component|
+  double max_speed_m_s = 0.15;  ///< max translational speed (bounds the amplitude·frequency)
   double max_angular_speed_deg_s = 20.0;
   double min_freq_hz = 0.05;
   double max_freq_hz = 0.4;
-  double rate_hz = 1000.0;               ///< sample rate of the trajectory
+  double rate_hz = 1000.0;  ///< sample rate of the trajectory
 };
 std::vector<camera::StampedPose> generate_motion(std::int64_t t0_us, std::int64_t t1_us, const MotionOptions& options,
                                                  std::mt19937_64& rng);
