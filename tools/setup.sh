@@ -7,7 +7,7 @@ set -euo pipefail
 # One list for the whole project (build, tests, fuzzing, tooling). Keep sorted by purpose.
 PACKAGES=(
   # toolchain
-  build-essential cmake ninja-build pkg-config git ca-certificates python3
+  build-essential cmake ninja-build pkg-config git ca-certificates python3 python3-venv
   clang clang-format clang-tidy libclang-rt-14-dev   # libFuzzer + sanitizer runtimes, format/tidy configs
   # core libraries (design card)
   libeigen3-dev libopencv-dev libceres-dev libflann-dev libnanoflann-dev

@@ -175,28 +175,13 @@ void write_events(const std::string& path, const sim::LabelledEvents& rec, Senso
   w->close();
 }
 
-/// YAML double-quoted scalar.
-std::string yaml_quoted(std::string_view s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (u < 0x20 || u == 0x7f) {
-      out += fmt::format("\\x{:02x}", u);
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
 /// The manifest: a YAML document built line by line (numbers in their shortest exact form).
 class Manifest {
  public:
   void section(std::string_view name) { text_ += fmt::format("{}:\n", name); }
-  void str(std::string_view key, std::string_view v, int indent = 2) { line(key, yaml_quoted(v), indent); }
+  void str(std::string_view key, std::string_view v, int indent = 2) {
+    line(key, evpipe::camera::yaml_quoted(v), indent);
+  }
   void num(std::string_view key, double v, int indent = 2) { line(key, fmt::format("{}", v + 0.0), indent); }
   void integer(std::string_view key, long long v, int indent = 2) { line(key, std::to_string(v), indent); }
   void boolean(std::string_view key, bool v, int indent = 2) { line(key, v ? "true" : "false", indent); }
@@ -207,7 +192,7 @@ class Manifest {
   }
   void strings(std::string_view key, const std::vector<std::string>& v, int indent = 2) {
     std::string s = "[";
-    for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + yaml_quoted(v[i]);
+    for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + evpipe::camera::yaml_quoted(v[i]);
     line(key, s + "]", indent);
   }
   void comment(std::string_view c) { text_ += fmt::format("# {}\n", c); }

@@ -18,23 +18,6 @@ std::string num(double v, std::string_view what) {
   return fmt::format("{}", v + 0.0);  // + 0.0: -0.0 is written as 0
 }
 
-/// A YAML double-quoted scalar: backslash, quote and control characters escaped.
-std::string quoted(std::string_view s) {
-  std::string out = "\"";
-  for (const char c : s) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (u < 0x20 || u == 0x7f) {
-      out += fmt::format("\\x{:02x}", u);
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
 /// The millimetre value written for a coordinate x_m: the loader computes mm / 1000, so pick, among the
 /// doubles next to x_m * 1000, the one with the shortest text whose division gives back x_m exactly.
 std::string millimetres(double x_m) {
@@ -72,6 +55,22 @@ WireQuaternion canonical_wire(const Eigen::Quaterniond& q) {
 
 }  // namespace
 
+std::string yaml_quoted(std::string_view s) {
+  std::string out = "\"";
+  for (const char c : s) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (u < 0x20 || u == 0x7f) {
+      out += fmt::format("\\x{:02x}", u);
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
 std::string to_yaml(const CameraModel& c) {
   std::string out = "camera:\n";
   auto line = [&out](std::string_view key, const std::string& value) { out += fmt::format("  {}: {}\n", key, value); };
@@ -91,7 +90,7 @@ std::string to_yaml(const LineModel& model, std::string_view units) {
   if (!mm && units != "m") {
     throw std::invalid_argument(fmt::format("to_yaml: unknown units '{}' (expected mm or m)", units));
   }
-  std::string out = fmt::format("model:\n  name: {}\n  units: {}\n  lines:\n", quoted(model.name), units);
+  std::string out = fmt::format("model:\n  name: {}\n  units: {}\n  lines:\n", yaml_quoted(model.name), units);
   auto coord = [mm](double v) { return mm ? millimetres(v) : num(v, "coordinate"); };
   for (const Segment3& s : model.segments_m) {
     out += fmt::format("    - [{}, {}, {}, {}, {}, {}]\n", coord(s.a_m.x()), coord(s.a_m.y()), coord(s.a_m.z()),

@@ -126,9 +126,7 @@ class Aedat31Reader final : public FileReader {
   }
 
   [[nodiscard]] std::optional<double> progress() const override {
-    const auto size = source_->size();
-    if (!size || *size == 0) return std::nullopt;
-    return std::min(1.0, static_cast<double>(stats_.bytes_read) / static_cast<double>(*size));
+    return detail::byte_progress(stats_.bytes_read, source_->size());
   }
 
  private:

@@ -210,8 +210,7 @@ class Aedat4Reader final : public FileReader {
 
   [[nodiscard]] std::optional<double> progress() const override {
     if (finished_) return 1.0;
-    if (!file_size_ || *file_size_ == 0) return std::nullopt;
-    return std::min(1.0, static_cast<double>(pos_) / static_cast<double>(*file_size_));
+    return detail::byte_progress(pos_, file_size_);
   }
 
  private:

@@ -1,6 +1,7 @@
 #pragma once
 // Internal helpers shared by the readers and writers of libs/io.
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -54,6 +55,12 @@ class TimeOrder {
   const std::string& file_;
   std::optional<std::int64_t> last_;
 };
+
+/// Share of the input consumed, for FileReader::progress(): nullopt when the size is unknown or zero.
+inline std::optional<double> byte_progress(std::uint64_t bytes_read, std::optional<std::uint64_t> size) {
+  if (!size || *size == 0) return std::nullopt;
+  return std::min(1.0, static_cast<double>(bytes_read) / static_cast<double>(*size));
+}
 
 /// Little/big-endian loads from unaligned bytes.
 template <typename T>

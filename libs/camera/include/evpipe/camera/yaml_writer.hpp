@@ -36,4 +36,7 @@ namespace evpipe::camera {
 /// @throws std::invalid_argument when a number is not finite.
 [[nodiscard]] std::string to_yaml(const PosePrior& prior);
 
+/// A YAML double-quoted scalar: backslash and quote escaped, control characters as \xNN.
+[[nodiscard]] std::string yaml_quoted(std::string_view s);
+
 }  // namespace evpipe::camera
