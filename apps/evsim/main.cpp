@@ -144,7 +144,9 @@ Eigen::Quaterniond parse_orientation(const std::string& text) {
 
 void check_expected_noise(const Config& c, const SensorGeometry& g, double span_s) {
   const double expected =
-      (c.noise.rate_hz_per_pixel * static_cast<double>(g.pixels()) + c.noise.hot_pixels * c.noise.hot_rate_hz) * span_s;
+      ((c.noise.rate_hz_per_pixel + c.noise.leak_rate_hz_per_pixel) * static_cast<double>(g.pixels()) +
+       c.noise.hot_pixels * c.noise.hot_rate_hz) *
+      span_s;
   if (expected > kMaxExpectedNoiseEvents) {
     throw UsageError(fmt::format("the noise options ask for ~{:.3g} events, over the {:.0e} evsim accepts", expected,
                                  kMaxExpectedNoiseEvents));
@@ -481,6 +483,7 @@ int run(Config& c) {
     m.section("noise");
     m.num("rate_hz_per_pixel", c.noise.rate_hz_per_pixel);
     m.num("on_share", c.noise.on_share);
+    m.num("leak_rate_hz_per_pixel", c.noise.leak_rate_hz_per_pixel);
     m.integer("hot_pixels", c.noise.hot_pixels);
     m.num("hot_rate_hz", c.noise.hot_rate_hz);
   }
@@ -546,6 +549,8 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--noise-on-share", c.noise.on_share, "Share of noise events that are ON")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--leak-hz", c.noise.leak_rate_hz_per_pixel, "Leak events per pixel (Hz, ON only)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--hot-pixels", c.noise.hot_pixels, "Number of hot pixels")->check(CLI::NonNegativeNumber);
   app.add_option("--hot-rate-hz", c.noise.hot_rate_hz, "Rate of each hot pixel (Hz)")->check(CLI::NonNegativeNumber);
   auto* pure =

@@ -90,3 +90,14 @@ TEST(BackgroundActivity, SameSeedSameEvents) {
   EXPECT_EQ(ea, sim::background_activity(kDavis346, 0, 100'000, o, b));
   EXPECT_NE(ea, sim::background_activity(kDavis346, 0, 100'000, o, c));
 }
+
+TEST(BackgroundActivity, LeakEventsAreOnAtTheirRate) {
+  std::mt19937_64 rng(21);
+  sim::NoiseOptions o;
+  o.rate_hz_per_pixel = 0;
+  o.leak_rate_hz_per_pixel = 0.5;
+  const auto ev = sim::background_activity(kDavis346, 0, 2'000'000, o, rng);
+  const double expected = 0.5 * static_cast<double>(kDavis346.pixels()) * 2.0;
+  EXPECT_NEAR(static_cast<double>(ev.size()), expected, 5.0 * std::sqrt(expected));
+  for (const auto& e : ev) ASSERT_TRUE(e.polarity);
+}

@@ -21,6 +21,14 @@ std::vector<Event> background_activity(const SensorGeometry& g, std::int64_t t0_
   out.reserve(static_cast<std::size_t>(n));
   for (std::int64_t i = 0; i < n; ++i)
     out.push_back({t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), on(rng)});
+  if (o.leak_rate_hz_per_pixel > 0) {
+    // Drawn only when enabled, so that recordings without leak noise keep their exact bytes.
+    std::poisson_distribution<std::int64_t> leak_count(o.leak_rate_hz_per_pixel * static_cast<double>(g.pixels()) *
+                                                       span_s);
+    const std::int64_t k = leak_count(rng);
+    for (std::int64_t i = 0; i < k; ++i)
+      out.push_back({t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), true});
+  }
   if (o.hot_pixels > 0 && o.hot_rate_hz > 0) {
     std::poisson_distribution<std::int64_t> hot_count(o.hot_rate_hz * span_s);
     for (int h = 0; h < o.hot_pixels; ++h) {

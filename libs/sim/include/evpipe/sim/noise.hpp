@@ -11,10 +11,13 @@
 namespace evpipe::sim {
 
 struct NoiseOptions {
-  double rate_hz_per_pixel = 1.0;  ///< mean BA rate λ per pixel
-  double on_share = 0.5;           ///< share of noise events with ON polarity
-  int hot_pixels = 0;              ///< number of hot pixels (chosen uniformly at random)
-  double hot_rate_hz = 200.0;      ///< firing rate of each hot pixel
+  double rate_hz_per_pixel = 1.0;  ///< shot-noise BA rate λ per pixel (both polarities, split by on_share)
+  double on_share = 0.5;           ///< share of the shot-noise events with ON polarity
+  /// Leak-event rate per pixel: junction leakage slowly drifts the photoreceptor's reset level, so leak
+  /// events are ON only (Nozaki & Delbruck 2017). Independent of the shot noise; 0 = none.
+  double leak_rate_hz_per_pixel = 0.0;
+  int hot_pixels = 0;          ///< number of hot pixels (chosen uniformly at random)
+  double hot_rate_hz = 200.0;  ///< firing rate of each hot pixel
 };
 
 /// Noise events in [t0_us, t1_us) over the whole sensor, time-ordered. Deterministic for a given rng state.
