@@ -684,5 +684,42 @@ TEST_F(Aedat4Files, EmptyUncompressedPacketIsCorruptNotACrash) {
   EXPECT_EQ(d.stats.corrupt_packets, 1u);
 }
 
+TEST_F(Aedat4Files, MisalignedEventArrayIsCorruptNotUndefinedBehaviour) {
+  // Regression (found by fuzz_aedat4 under UBSan): FlatBuffers' verifier checks the alignment of a vector's
+  // length only, so a damaged packet could put its 16-byte events at an address that is 4 mod 8.
+  // Hand-built EVTS buffer (offsets from the start of the buffer B, after its uint32 size prefix):
+  //   B+0 root offset 16 | B+4 "EVTS" | B+8 vtable {6, 8, 4} | B+16 table: soffset 8, field 0 -> B+28
+  //   B+28 vector length 2 | B+32 two events.
+  // The size prefix sits at an 8-aligned address, so B+32 is 4 mod 8: misaligned for int64 timestamps.
+  Bytes buf(4 + 64, std::byte{0});
+  put<std::uint32_t>(buf, 0, 64);  // size prefix
+  const std::size_t B = 4;
+  put<std::uint32_t>(buf, B + 0, 16);
+  std::memcpy(buf.data() + B + 4, "EVTS", 4);
+  put<std::uint16_t>(buf, B + 8, 6);
+  put<std::uint16_t>(buf, B + 10, 8);
+  put<std::uint16_t>(buf, B + 12, 4);
+  put<std::int32_t>(buf, B + 16, 8);
+  put<std::uint32_t>(buf, B + 20, 8);  // field 0 at B+20 -> vector at B+28
+  put<std::uint32_t>(buf, B + 28, 2);
+  for (int k = 0; k < 2; ++k) {
+    put<std::int64_t>(buf, B + 32 + 16 * k, 1'000'000 + k);
+    put<std::int16_t>(buf, B + 40 + 16 * k, 5);
+    put<std::int16_t>(buf, B + 42 + 16 * k, 6);
+  }
+  WriterOptions w;
+  w.compression = "none";
+  const auto events = synthetic_events(100);
+  Bytes b = write(events, w, false, "misaligned.aedat4");  // no data table: packets are read to EOF
+  const std::size_t at = b.size();
+  b.resize(at + 8);
+  put<std::int32_t>(b, at, 0);
+  put<std::int32_t>(b, at + 4, static_cast<std::int32_t>(buf.size()));
+  b.insert(b.end(), buf.begin(), buf.end());
+  const Decoded d = decode_bytes(b);
+  EXPECT_EQ(d.events, events);
+  EXPECT_EQ(d.stats.corrupt_packets, 1u);
+}
+
 }  // namespace
 }  // namespace evpipe::io

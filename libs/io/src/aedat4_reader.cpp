@@ -476,6 +476,13 @@ class Aedat4Reader final : public FileReader {
       if (identify_by_content_) event_stream_ = stream_id;
       const auto* elements = fb::GetEventPacket(root)->elements();
       if (elements == nullptr || elements->size() == 0) continue;
+      // FlatBuffers' verifier (2.0.8) checks the alignment of a vector's length field only, not of its
+      // struct elements; every conforming writer aligns them to the struct (8 bytes), so a misaligned array
+      // is damage, and reading it would be undefined behaviour.
+      if (reinterpret_cast<std::uintptr_t>(elements->Data()) % alignof(fb::Event) != 0) {
+        corrupt(payload_at, fmt::format("packet of stream {}: its event array is misaligned", stream_id));
+        continue;
+      }
       elements_ = elements;
       cursor_ = 0;
       packet_at_ = payload_at;
@@ -596,7 +603,8 @@ class Aedat4Reader final : public FileReader {
   /// packet may then have events left), nullptr when the packet is exhausted.
   EventBatchPtr decode_current_packet() {
     const std::uint32_t n = elements_->size();
-    // Structs are stored inline: the vector's data is an array of fb::Event (verified, aligned).
+    // Structs are stored inline: the vector's data is an array of fb::Event (verified; alignment checked
+    // in load_next_packet()).
     const auto* events = reinterpret_cast<const fb::Event*>(elements_->Data());
     const auto width = static_cast<unsigned>(info_.geometry.width);
     const auto height = static_cast<unsigned>(info_.geometry.height);
