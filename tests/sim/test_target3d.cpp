@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 #include <map>
 
 #include "evpipe/camera/line_model.hpp"
@@ -71,6 +72,7 @@ TEST(Target3D, EverySignalEventLiesWithinOnePointFivePixelsOfAProjectedSegment) 
       worst = std::max(worst, d);
       on += e.polarity;
     }
+    std::cout << file << ": " << ev.size() << " events, worst distance to the model " << worst << " px\n";
     EXPECT_LE(worst, 1.5);
     // Both polarities occur (bright sides are random per segment, motion goes both ways).
     EXPECT_GT(on, ev.size() / 10);
