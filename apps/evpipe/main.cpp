@@ -29,8 +29,12 @@
 namespace {
 
 std::atomic<bool> g_stop{false};
+// The paced replay source, so that a signal also ends its sleep (a silent stretch of a recording could
+// otherwise keep it asleep for as long as the silence lasts). Lock-free atomic stores are signal-safe.
+std::atomic<evpipe::pipeline::PacedSource*> g_paced{nullptr};
 extern "C" void on_signal(int /*sig*/) {
   g_stop.store(true);
+  if (auto* p = g_paced.load()) p->stop();
 }
 
 struct Cli {
@@ -116,6 +120,7 @@ int run(const Cli& cli) {
   spdlog::info("{} {} ({}, {}x{})", live ? "reading" : "replaying", source->info().name, source->info().format,
                source->info().geometry.width, source->info().geometry.height);
 
+  g_paced.store(paced);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
 
@@ -145,7 +150,6 @@ int run(const Cli& cli) {
       stream.add(batch->span());
       slicer.accept(batch);
       progress.update(source->progress(), stream.events(), stream.duration_us());
-      if (g_stop.load() && paced) paced->stop();
     }
     slicer.flush();
   } catch (const SourceError& e) {

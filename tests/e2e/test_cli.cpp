@@ -3,6 +3,7 @@
 
 #include <sys/wait.h>
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -420,4 +421,19 @@ TEST(Evsim, UsageErrorsExitTwo) {
   r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(bad) + out);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("model.units"), std::string::npos) << r.err;
+}
+
+TEST(Evpipe, SigintEndsAPacedReplayPromptly) {
+  // A 30 s silence in a real-time replay: SIGINT after 1 s must end the sleep at once, print the summary
+  // of what was read, and exit 0.
+  const auto dir = evpipe::testing::temp_dir("e2e-sigint");
+  const auto path = (dir / "gap.txt").string();
+  std::ofstream(path) << "# width=346 height=260\n0 1 1 1\n30000000 2 2 0\n";
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = run("timeout --preserve-status -s INT 1 " + kEvpipe + " --replay " + q(path) + " --json");
+  const auto wall = std::chrono::steady_clock::now() - t0;
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(field(r.out, "interrupted"), "true");
+  EXPECT_EQ(field(r.out, "events"), "1");
+  EXPECT_LT(wall, std::chrono::seconds(10));
 }

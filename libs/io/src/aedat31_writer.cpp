@@ -4,7 +4,6 @@
 
 #include <fmt/format.h>
 #include <algorithm>
-#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
@@ -40,8 +39,7 @@ class Aedat31Writer final : public EventWriter {
                                               options_.geometry.width, options_.geometry.height));
     // Bounds the packet buffer (a packet could hold INT32_MAX events).
     packet_events_ = std::min<std::size_t>(packet_events_, std::size_t{1} << 20);
-    file_ = std::fopen(path.c_str(), "wb");
-    if (file_ == nullptr) throw SourceError(fmt::format("{}: cannot create: {}", path, std::strerror(errno)));
+    out_ = std::make_unique<OutputFile>(path);
     write_header();
   }
 
@@ -53,11 +51,9 @@ class Aedat31Writer final : public EventWriter {
   }
 
   void write(EventSpan events, std::span<const Label> /*labels: AEDAT 3.1 has no label field*/) override {
-    if (file_ == nullptr) throw SourceError(path_ + ": write after close");
+    if (!out_->is_open()) throw SourceError(path_ + ": write after close");
     for (const Event& e : events) {
-      if (e.x >= options_.geometry.width || e.y >= options_.geometry.height)
-        throw std::invalid_argument(fmt::format("{}: event at x={} y={} is outside the {}x{} sensor", path_, e.x, e.y,
-                                                options_.geometry.width, options_.geometry.height));
+      check_in_sensor(path_, options_.geometry, e);
       // t = (overflow << 31) | ts with a 31-bit ts and an int32 overflow counter.
       constexpr std::int64_t kLimit = std::int64_t{1} << 62;
       if (e.t_us >= kLimit || e.t_us < -kLimit)
@@ -70,27 +66,12 @@ class Aedat31Writer final : public EventWriter {
   }
 
   void close() override {
-    if (file_ == nullptr) return;
-    std::FILE* f = file_;
-    try {
-      flush_packet();
-    } catch (...) {
-      file_ = nullptr;
-      std::fclose(f);
-      throw;
-    }
-    file_ = nullptr;
-    const bool write_failed = std::ferror(f) != 0;
-    const bool close_failed = std::fclose(f) != 0;
-    if (write_failed || close_failed) throw SourceError(fmt::format("{}: write failed", path_));
+    if (!out_->is_open()) return;
+    flush_packet();
+    out_->close();
   }
 
  private:
-  void put(const std::vector<std::byte>& bytes) {
-    if (std::fwrite(bytes.data(), 1, bytes.size(), file_) != bytes.size())
-      throw SourceError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
-  }
-
   void write_header() {
     char when[64] = "1970-01-01 00:00:00 (TZ+0000)";
     const std::time_t now = std::time(nullptr);
@@ -105,8 +86,7 @@ class Aedat31Writer final : public EventWriter {
     const std::string header =
         fmt::format("#!AER-DAT3.1\r\n#Format: RAW\r\n#Source {}: {}{}x{} ({})\r\n#Start-Time: {}\r\n#!END-HEADER\r\n",
                     kSourceId, sensor, g.width, g.height, name, when);
-    const auto* p = reinterpret_cast<const std::byte*>(header.data());
-    put(std::vector<std::byte>(p, p + header.size()));
+    out_->write(header.data(), header.size());
   }
 
   void flush_packet() {
@@ -129,13 +109,13 @@ class Aedat31Writer final : public EventWriter {
       put_le32(buf_, static_cast<std::uint32_t>(e.t_us & 0x7FFFFFFF));
     }
     pending_.clear();
-    put(buf_);
+    out_->write(buf_);
   }
 
   std::string path_;
   WriterOptions options_;
   std::size_t packet_events_;
-  std::FILE* file_ = nullptr;
+  std::unique_ptr<OutputFile> out_;  // created after the options are checked
   std::vector<Event> pending_;
   std::vector<std::byte> buf_;
   std::int32_t overflow_ = 0;

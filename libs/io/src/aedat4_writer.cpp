@@ -9,7 +9,6 @@
 
 #include <fmt/format.h>
 #include <algorithm>
-#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
@@ -111,8 +110,7 @@ class Aedat4Writer final : public EventWriter {
       throw std::invalid_argument(fmt::format("{}: sensor size {}x{} cannot be written to AEDAT 4.0", path,
                                               options.geometry.width, options.geometry.height));
 
-    file_ = std::fopen(path.c_str(), "wb");
-    if (file_ == nullptr) throw SourceError(fmt::format("{}: cannot create: {}", path, std::strerror(errno)));
+    out_ = std::make_unique<OutputFile>(path);
 
     // force_defaults: data_table_position = -1 gets a slot that close() can patch in place.
     flatbuffers::FlatBufferBuilder fbb(4096);
@@ -126,53 +124,37 @@ class Aedat4Writer final : public EventWriter {
   }
 
   ~Aedat4Writer() override {
-    if (file_ == nullptr) return;
+    if (!out_ || !out_->is_open()) return;
     try {
       flush_packet();  // keep the events; no table (as an interrupted recording)
-    } catch (...) {
-      // destructors must not throw; close() reports errors
+    } catch (...) {    // NOLINT(bugprone-empty-catch): destructors must not throw; close() reports errors
     }
-    if (file_ != nullptr) std::fclose(file_);
   }
 
   void write(EventSpan events, std::span<const Label> /*labels: AEDAT 4.0 has no label field*/) override {
-    if (file_ == nullptr) throw SourceError(fmt::format("{}: write after close()", path_));
+    if (!out_->is_open()) throw SourceError(fmt::format("{}: write after close()", path_));
     for (const Event& e : events) {
-      if (!options_.geometry.contains(e.x, e.y))
-        throw std::invalid_argument(fmt::format("{}: event at t={} us, x={} y={} is outside the {}x{} sensor", path_,
-                                                e.t_us, e.x, e.y, options_.geometry.width, options_.geometry.height));
+      check_in_sensor(path_, options_.geometry, e);
       pending_.emplace_back(e.t_us, static_cast<std::int16_t>(e.x), static_cast<std::int16_t>(e.y), e.polarity);
       if (pending_.size() >= packet_events_) flush_packet();
     }
   }
 
   void close() override {
-    if (file_ == nullptr) return;
+    if (!out_->is_open()) return;
     flush_packet();
-    const auto table_at = static_cast<std::int64_t>(pos_);
+    const auto table_at = static_cast<std::int64_t>(out_->tell());
     write_table();
     // Patch the IOHeader copy and rewrite it in place (same size: the slot exists).
     if (!fb::GetMutableSizePrefixedIOHeader(header_.data())->mutate_data_table_position(table_at))
       throw SourceError(fmt::format("{}: internal error: IOHeader has no data_table_position slot", path_));
-    if (std::fseek(file_, static_cast<long>(kMagic.size()), SEEK_SET) != 0) fail("cannot seek back to the IOHeader");
+    out_->seek(kMagic.size());
     put(header_.data(), header_.size());
-    std::FILE* f = file_;
-    file_ = nullptr;
-    if (std::fclose(f) != 0) throw SourceError(fmt::format("{}: close failed: {}", path_, std::strerror(errno)));
+    out_->close();
   }
 
  private:
-  [[noreturn]] void fail(const std::string& what) {
-    const int err = errno;
-    std::fclose(file_);
-    file_ = nullptr;
-    throw SourceError(fmt::format("{}: byte {}: {}: {}", path_, pos_, what, std::strerror(err)));
-  }
-
-  void put(const void* data, std::size_t n) {
-    if (n > 0 && std::fwrite(data, 1, n, file_) != n) fail("write failed");
-    pos_ += n;
-  }
+  void put(const void* data, std::size_t n) { out_->write(data, n); }
 
   /// Compresses `raw` (one size-prefixed flatbuffer) into compressed_, or returns it unchanged.
   std::span<const std::uint8_t> compress(std::span<const std::uint8_t> raw) {
@@ -220,8 +202,9 @@ class Aedat4Writer final : public EventWriter {
     std::memcpy(header.data(), &stream, 4);  // little-endian targets only (see detail::load_le)
     std::memcpy(header.data() + 4, &size, 4);
     put(header.data(), header.size());
-    table_.push_back(TableEntry{static_cast<std::int64_t>(pos_), size, static_cast<std::int64_t>(pending_.size()),
-                                pending_.front().timestamp(), pending_.back().timestamp()});
+    table_.push_back(TableEntry{static_cast<std::int64_t>(out_->tell()), size,
+                                static_cast<std::int64_t>(pending_.size()), pending_.front().timestamp(),
+                                pending_.back().timestamp()});
     put(stored.data(), stored.size());
     pending_.clear();
   }
@@ -244,8 +227,7 @@ class Aedat4Writer final : public EventWriter {
   WriterOptions options_;
   std::size_t packet_events_;
   fb::CompressionType compression_ = fb::CompressionType::LZ4;
-  std::FILE* file_ = nullptr;
-  std::uint64_t pos_ = 0;             // bytes written so far = offset of the next byte
+  std::unique_ptr<OutputFile> out_;   // created after the options are checked
   std::vector<std::uint8_t> header_;  // the size-prefixed IOHeader as written
   std::vector<fb::Event> pending_;
   std::vector<TableEntry> table_;

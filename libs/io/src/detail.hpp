@@ -3,9 +3,11 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "evpipe/io/reader.hpp"
@@ -73,6 +75,39 @@ inline std::uint32_t load_be32(const std::byte* p) noexcept {
   return (static_cast<std::uint32_t>(p[0]) << 24) | (static_cast<std::uint32_t>(p[1]) << 16) |
          (static_cast<std::uint32_t>(p[2]) << 8) | static_cast<std::uint32_t>(p[3]);
 }
+
+/// A file being written by one of the writers. Created ("wb") or SourceError naming the path. Any failure
+/// throws SourceError naming the path and byte offset and closes the file (later writes report "write after
+/// close"); the destructor closes without throwing.
+class OutputFile {
+ public:
+  explicit OutputFile(std::string path);
+  ~OutputFile();
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  void write(const void* data, std::size_t n);
+  void write(std::span<const std::byte> bytes) { write(bytes.data(), bytes.size()); }
+  /// Moves to an absolute offset (AEDAT 4.0 patches its header at close).
+  void seek(std::uint64_t offset);
+  /// Closes, reporting any buffered write or close error; a no-op when already closed.
+  void close();
+  [[nodiscard]] bool is_open() const noexcept { return file_ != nullptr; }
+  /// Current position: bytes written so far unless seek() moved it.
+  [[nodiscard]] std::uint64_t tell() const noexcept { return pos_; }
+  [[nodiscard]] const std::string& path() const noexcept { return path_; }
+
+ private:
+  [[noreturn]] void fail(const char* what, int err);
+
+  std::string path_;
+  std::FILE* file_ = nullptr;
+  std::uint64_t pos_ = 0;
+};
+
+/// Throws std::invalid_argument naming the file when `e` lies outside `geometry` (writers never write an
+/// event their own readers would reject).
+void check_in_sensor(const std::string& path, const SensorGeometry& geometry, const Event& e);
 
 std::unique_ptr<EventWriter> make_text_writer(const std::string& path, const WriterOptions& options);
 std::unique_ptr<EventWriter> make_aedat4_writer(const std::string& path, const WriterOptions& options);

@@ -2,7 +2,6 @@
 // label 1 = signal / 0 = noise), formatted with fmt into a buffer flushed in large writes.
 
 #include <fmt/format.h>
-#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <iterator>
@@ -19,9 +18,7 @@ constexpr std::size_t kFlushBytes = std::size_t{1} << 20;
 
 class TextWriter final : public EventWriter {
  public:
-  TextWriter(const std::string& path, const WriterOptions& options) : path_(path), options_(options) {
-    file_ = std::fopen(path.c_str(), "wb");
-    if (file_ == nullptr) throw SourceError(fmt::format("{}: cannot create: {}", path, std::strerror(errno)));
+  TextWriter(const std::string& path, const WriterOptions& options) : path_(path), options_(options), out_(path) {
     fmt::format_to(std::back_inserter(buf_), "# width={} height={}\n", options_.geometry.width,
                    options_.geometry.height);
   }
@@ -34,7 +31,7 @@ class TextWriter final : public EventWriter {
   }
 
   void write(EventSpan events, std::span<const Label> labels) override {
-    if (file_ == nullptr) throw SourceError(path_ + ": write after close");
+    if (!out_.is_open()) throw SourceError(path_ + ": write after close");
     if (!labels.empty() && labels.size() != events.size())
       throw std::invalid_argument(fmt::format("{}: {} labels for {} events", path_, labels.size(), events.size()));
     if (events.empty()) return;
@@ -49,9 +46,7 @@ class TextWriter final : public EventWriter {
     auto out = std::back_inserter(buf_);
     for (std::size_t i = 0; i < events.size(); ++i) {
       const Event& e = events[i];
-      if (e.x >= options_.geometry.width || e.y >= options_.geometry.height)
-        throw std::invalid_argument(fmt::format("{}: event at x={} y={} is outside the {}x{} sensor", path_, e.x, e.y,
-                                                options_.geometry.width, options_.geometry.height));
+      check_in_sensor(path_, options_.geometry, e);
       if (with_labels) {
         fmt::format_to(out, "{} {} {} {} {}\n", e.t_us, e.x, e.y, e.polarity ? 1 : 0,
                        labels[i] == Label::signal ? 1 : 0);
@@ -63,32 +58,20 @@ class TextWriter final : public EventWriter {
   }
 
   void close() override {
-    if (file_ == nullptr) return;
-    std::FILE* f = file_;
-    try {
-      flush();
-    } catch (...) {
-      file_ = nullptr;
-      std::fclose(f);
-      throw;
-    }
-    file_ = nullptr;
-    const bool write_failed = std::ferror(f) != 0;
-    const bool close_failed = std::fclose(f) != 0;
-    if (write_failed || close_failed) throw SourceError(fmt::format("{}: write failed", path_));
+    if (!out_.is_open()) return;
+    flush();
+    out_.close();
   }
 
  private:
   void flush() {
-    if (buf_.size() == 0) return;
-    if (std::fwrite(buf_.data(), 1, buf_.size(), file_) != buf_.size())
-      throw SourceError(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
+    out_.write(buf_.data(), buf_.size());
     buf_.clear();
   }
 
   std::string path_;
   WriterOptions options_;
-  std::FILE* file_ = nullptr;
+  OutputFile out_;
   fmt::memory_buffer buf_;
   std::optional<bool> labelled_;
 };
