@@ -1,0 +1,153 @@
+#include "evpipe/denoise/registry.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <map>
+#include <stdexcept>
+
+#include "evpipe/denoise/baf.hpp"
+#include "evpipe/denoise/chain.hpp"
+
+namespace evpipe::denoise {
+
+const std::vector<FilterSpec>& filter_specs() {
+  // One line per filter; each filter's header declares its spec.
+  static const std::vector<FilterSpec> specs = {
+      baf_spec(),
+  };
+  return specs;
+}
+
+const FilterSpec* find_filter(std::string_view name) noexcept {
+  for (const auto& s : filter_specs()) {
+    if (s.name == name) {
+      return &s;
+    }
+  }
+  return nullptr;
+}
+
+std::vector<ParamInfo> describe(const FilterSpec& spec) {
+  Params p = Params::describe(std::string(spec.name));
+  (void)spec.make(p, kDavis346);
+  return p.described();
+}
+
+namespace {
+
+const FilterSpec& require_filter(std::string_view name) {
+  if (const FilterSpec* s = find_filter(name)) {
+    return *s;
+  }
+  std::vector<std::string_view> known;
+  for (const auto& s : filter_specs()) {
+    known.push_back(s.name);
+  }
+  throw std::invalid_argument(fmt::format("unknown filter '{}' (known: {})", name, fmt::join(known, ", ")));
+}
+
+bool knows(const FilterSpec& spec, std::string_view key) {
+  const auto params = describe(spec);
+  return std::any_of(params.begin(), params.end(), [&](const ParamInfo& p) { return p.key == key; });
+}
+
+std::vector<std::string_view> split_chain(std::string_view spec) {
+  std::vector<std::string_view> names;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = spec.find(',', start);
+    const std::string_view name = spec.substr(start, comma == std::string_view::npos ? spec.npos : comma - start);
+    if (name.empty()) {
+      throw std::invalid_argument(fmt::format("filter chain '{}': empty filter name", spec));
+    }
+    names.push_back(name);
+    if (comma == std::string_view::npos) {
+      return names;
+    }
+    start = comma + 1;
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<Filter> make_filter(std::string_view name,
+                                    const std::vector<std::pair<std::string, std::string>>& settings,
+                                    const SensorGeometry& geometry) {
+  const FilterSpec& spec = require_filter(name);
+  std::map<std::string, std::string, std::less<>> values;
+  for (const auto& [key, value] : settings) {
+    values[key] = value;
+  }
+  Params params(std::string(spec.name), std::move(values));
+  auto filter = spec.make(params, geometry);
+  params.check_all_used();
+  return filter;
+}
+
+std::unique_ptr<Filter> make_filter_chain(std::string_view spec,
+                                          const std::vector<std::pair<std::string, std::string>>& settings,
+                                          const SensorGeometry& geometry) {
+  const auto names = split_chain(spec);
+  std::vector<const FilterSpec*> specs;
+  for (const auto n : names) {
+    specs.push_back(&require_filter(n));
+  }
+  std::vector<std::vector<std::pair<std::string, std::string>>> per_stage(specs.size());
+  for (const auto& [key, value] : settings) {
+    if (key.empty() || value.empty()) {
+      throw std::invalid_argument(fmt::format("setting '{}={}': expected KEY=VALUE", key, value));
+    }
+    const std::size_t dot = key.find('.');
+    if (dot != std::string::npos) {
+      const std::string_view target = std::string_view(key).substr(0, dot);
+      const std::string bare = key.substr(dot + 1);
+      bool found = false;
+      for (std::size_t i = 0; i < specs.size(); ++i) {
+        if (specs[i]->name == target) {
+          per_stage[i].emplace_back(bare, value);
+          found = true;
+        }
+      }
+      if (!found) {
+        throw std::invalid_argument(
+            fmt::format("setting '{}': filter '{}' is not in the chain '{}'", key, target, spec));
+      }
+      continue;
+    }
+    std::vector<std::size_t> owners;
+    for (std::size_t i = 0; i < specs.size(); ++i) {
+      if (knows(*specs[i], key)) {
+        owners.push_back(i);
+      }
+    }
+    if (owners.empty()) {
+      // Let the (single) filter report it with its list of known keys.
+      per_stage[specs.size() == 1 ? 0 : specs.size() - 1].emplace_back(key, value);
+      if (specs.size() > 1) {
+        throw std::invalid_argument(fmt::format("setting '{}': no filter of the chain '{}' has this parameter "
+                                                "(evdenoise --list-filters shows them)",
+                                                key, spec));
+      }
+      continue;
+    }
+    if (owners.size() > 1 && specs[owners.front()]->name != specs[owners.back()]->name) {
+      throw std::invalid_argument(fmt::format(
+          "setting '{}': several filters of the chain '{}' have this parameter; write NAME.{}={}", key, spec, key,
+          value));
+    }
+    for (const std::size_t i : owners) {
+      per_stage[i].emplace_back(key, value);
+    }
+  }
+  std::vector<std::unique_ptr<Filter>> stages;
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    stages.push_back(make_filter(specs[i]->name, per_stage[i], geometry));
+  }
+  if (stages.size() == 1) {
+    return std::move(stages.front());
+  }
+  return std::make_unique<FilterChain>(std::move(stages));
+}
+
+}  // namespace evpipe::denoise

@@ -1,0 +1,142 @@
+// The filter interface, chains, parameters and the registry (filters themselves are tested in their own files).
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+
+#include "evpipe/denoise/chain.hpp"
+#include "evpipe/denoise/registry.hpp"
+
+namespace evpipe::denoise {
+namespace {
+
+// Keeps every second event it sees; decides each event only when the next one arrives (one event of
+// look-ahead), so the chain's bookkeeping of delayed decisions is exercised.
+class EveryOtherDelayed final : public Filter {
+ public:
+  [[nodiscard]] std::string_view name() const noexcept override { return "every-other"; }
+  void push(EventSpan events, Decisions& out) override {
+    for (std::size_t i = 0; i < events.size(); ++i) {
+      if (has_pending_) {
+        decide(out);
+      }
+      has_pending_ = true;
+    }
+  }
+  void finish(Decisions& out) override {
+    if (has_pending_) {
+      decide(out);
+    }
+  }
+  void reset() override {
+    has_pending_ = false;
+    n_ = 0;
+  }
+  [[nodiscard]] std::size_t pending() const noexcept override { return has_pending_ ? 1 : 0; }
+
+ private:
+  void decide(Decisions& out) {
+    out.keep.push_back((n_++ % 2 == 0) ? 1 : 0);
+    has_pending_ = false;
+  }
+  bool has_pending_ = false;
+  std::size_t n_ = 0;
+};
+
+std::vector<Event> ramp(std::size_t n) {
+  std::vector<Event> ev;
+  for (std::size_t i = 0; i < n; ++i) {
+    ev.push_back({static_cast<std::int64_t>(i * 10), static_cast<std::uint16_t>(i % 300), 5, (i % 3) == 0});
+  }
+  return ev;
+}
+
+TEST(FilterChain, ComposesDelayedDecisionsInInputOrder) {
+  std::vector<std::unique_ptr<Filter>> stages;
+  stages.push_back(std::make_unique<EveryOtherDelayed>());
+  stages.push_back(std::make_unique<EveryOtherDelayed>());
+  FilterChain chain(std::move(stages));
+  const auto ev = ramp(23);
+  for (const std::size_t chunk : {std::size_t{0}, std::size_t{1}, std::size_t{4}}) {
+    chain.reset();
+    const Decisions d = run_filter(chain, ev, chunk);
+    ASSERT_EQ(d.size(), ev.size()) << "chunk " << chunk;
+    // Stage 1 keeps inputs 0, 2, 4, ...; stage 2 keeps every second of those: inputs 0, 4, 8, ...
+    for (std::size_t i = 0; i < ev.size(); ++i) {
+      EXPECT_EQ(d.keep[i], i % 4 == 0 ? 1 : 0) << "event " << i << " chunk " << chunk;
+    }
+    EXPECT_EQ(chain.pending(), 0U);
+  }
+}
+
+TEST(FilterChain, RejectsEmpty) {
+  EXPECT_THROW(FilterChain({}), std::invalid_argument);
+}
+
+TEST(Params, ParsesAndValidates) {
+  Params p("demo", {{"a", "2.5"}, {"n", "7"}, {"b", "off"}, {"c", "two"}});
+  EXPECT_DOUBLE_EQ(p.real("a", 1.0, ""), 2.5);
+  EXPECT_EQ(p.integer("n", 1, ""), 7);
+  EXPECT_FALSE(p.boolean("b", true, ""));
+  EXPECT_EQ(p.choice("c", "one", {"one", "two"}, ""), "two");
+  EXPECT_DOUBLE_EQ(p.real("missing", 3.0, ""), 3.0);
+  EXPECT_NO_THROW(p.check_all_used());
+  try {
+    p.require_range("a", 2.5, 0.0, 1.0, true, false);
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "demo: a=2.5: must be in (0, 1]");
+  }
+}
+
+TEST(Params, BadValuesAndUnknownKeysAreNamed) {
+  Params p("demo", {{"a", "abc"}, {"zzz", "1"}});
+  try {
+    (void)p.real("a", 1.0, "");
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "demo: a=abc: not a finite number");
+  }
+  try {
+    p.check_all_used();
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown parameter 'zzz'"), std::string::npos) << e.what();
+  }
+  Params q("demo", {{"m", "x"}});
+  EXPECT_THROW((void)q.choice("m", "a", {"a", "b"}, ""), std::invalid_argument);
+  EXPECT_THROW((void)q.integer("m", 1, ""), std::invalid_argument);
+}
+
+TEST(Registry, UnknownFilterListsTheKnownOnes) {
+  try {
+    (void)make_filter_chain("nosuch", {}, kDavis346);
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown filter 'nosuch' (known: "), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("baf"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW((void)make_filter_chain("baf,", {}, kDavis346), std::invalid_argument);
+}
+
+TEST(Registry, EveryFilterDescribesItsParametersAndBuildsWithDefaults) {
+  for (const auto& spec : filter_specs()) {
+    const auto params = describe(spec);
+    for (const auto& p : params) {
+      EXPECT_FALSE(p.help.empty()) << spec.name << "." << p.key;
+    }
+    auto f = make_filter(spec.name, {}, kDavis346);
+    ASSERT_NE(f, nullptr);
+    EXPECT_EQ(f->name(), spec.name);
+  }
+}
+
+TEST(Registry, SettingsRouteToTheFilterThatKnowsThem) {
+  auto f = make_filter_chain("baf,baf", {{"baf.duration_us", "10"}}, kDavis346);
+  EXPECT_EQ(f->name(), "baf,baf");
+  EXPECT_THROW((void)make_filter_chain("baf", {{"duration_us", "-5"}}, kDavis346), std::invalid_argument);
+  EXPECT_THROW((void)make_filter_chain("baf", {{"nokey", "1"}}, kDavis346), std::invalid_argument);
+  EXPECT_THROW((void)make_filter_chain("baf", {{"knoise.duration_us", "1"}}, kDavis346), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace evpipe::denoise
