@@ -1,5 +1,6 @@
-// evpipe: DAVIS346 event stream → (denoise → pose → LCM, in later stages). This version replays a
-// recording or reads the live camera through a pass-through windowing stage and prints a summary.
+// evpipe: DAVIS346 event stream → denoise → (pose → LCM, in later stages). This version replays a recording
+// or reads the live camera, denoises it with the configured filter (the paper's curvature filter by default),
+// cuts the kept events into windows and prints a summary.
 //
 // Exit status: 0 success (also after SIGINT/SIGTERM), 1 runtime error (bad file, device), 2 usage or
 // configuration error.
@@ -14,12 +15,16 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <thread>
+#include <vector>
 
 #include "evpipe/config/run_config.hpp"
 #include "evpipe/core/error.hpp"
 #include "evpipe/core/slicer.hpp"
 #include "evpipe/core/stream_stats.hpp"
+#include "evpipe/denoise/filtered_stream.hpp"
+#include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/pipeline/paced_source.hpp"
 #include "live.hpp"
@@ -43,6 +48,7 @@ struct Cli {
   std::string speed;
   std::string camera, model, prior, poses_out;
   std::string log_level;
+  std::string denoise;
   bool json = false;
   bool no_progress = false;
   bool print_config = false;
@@ -77,6 +83,7 @@ int run(const Cli& cli) {
     if (!cli.prior.empty()) cfg.pose.prior = cli.prior;
     if (!cli.poses_out.empty()) cfg.pose.poses_out = cli.poses_out;
     if (!cli.log_level.empty()) cfg.log.level = cli.log_level;
+    if (!cli.denoise.empty()) cfg.denoise.filter = cli.denoise;
     cfg.validate();
   } catch (const config::ConfigError& e) {
     std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
@@ -116,6 +123,16 @@ int run(const Cli& cli) {
     std::fprintf(stderr, "evpipe: %s\n", e.what());
     return 1;
   }
+  // Built once the source knows the sensor size; parameter errors are configuration errors.
+  std::unique_ptr<denoise::Filter> filter;
+  if (cfg.denoise.filter != "none") {
+    try {
+      filter = denoise::make_filter_chain(cfg.denoise.filter, cfg.denoise.params, source->info().geometry);
+    } catch (const std::invalid_argument& e) {
+      std::fprintf(stderr, "evpipe: configuration error: denoise: %s\n", e.what());
+      return 2;
+    }
+  }
   const bool live = cfg.source.replay.empty();
   spdlog::info("{} {} ({}, {}x{})", live ? "reading" : "replaying", source->info().name, source->info().format,
                source->info().geometry.width, source->info().geometry.height);
@@ -130,8 +147,12 @@ int run(const Cli& cli) {
   summary.window_us = cfg.window.length_us;
   summary.hop_us = cfg.window.hop_us;
   summary.out_of_order_dropped = cfg.source.drop_out_of_order;
-  // The pass-through stage: windows of the configured length and hop, counted (denoise and pose stages
-  // plug in here).
+  summary.denoise_filter = filter ? std::string(filter->name()) : "none";
+  summary.denoise_latency_us = filter ? filter->latency_us() : 0;
+  // Denoise, then windows of the configured length and hop over the kept events (the pose stage plugs in here).
+  std::optional<denoise::FilteredStream> denoised;
+  if (filter) denoised.emplace(*filter);
+  std::vector<EventBatch> kept;
   TimeSlicer slicer({cfg.window.length_us, cfg.window.hop_us, std::nullopt}, [&summary](const EventWindow& w) {
     ++summary.windows;
     summary.window_events += w.size();
@@ -148,8 +169,19 @@ int run(const Cli& cli) {
         continue;
       }
       stream.add(batch->span());
-      slicer.accept(batch);
+      if (denoised) {
+        kept.clear();
+        denoised->push(*batch, kept);
+        for (auto& b : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(b)));
+      } else {
+        slicer.accept(batch);
+      }
       progress.update(source->progress(), stream.events(), stream.duration_us());
+    }
+    if (denoised) {
+      kept.clear();
+      denoised->finish(kept);
+      for (auto& b : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(b)));
     }
     slicer.flush();
   } catch (const SourceError& e) {
@@ -163,6 +195,10 @@ int run(const Cli& cli) {
   summary.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   summary.info = source->info();
   summary.source = source->stats();
+  if (denoised) {
+    summary.denoise_in = denoised->events_in();
+    summary.denoise_kept = denoised->events_kept();
+  }
   std::cout << (cli.json ? app::format_json(summary) : app::format_text(summary)) << std::flush;
   if (status != 0) std::fprintf(stderr, "evpipe: %s\n", summary.error.c_str());
   return status;
@@ -186,6 +222,8 @@ int main(int argc, char** argv) {
   app.add_option("--model", cli.model, "Line model of the target, YAML or DXF (pose stage)");
   app.add_option("--prior", cli.prior, "Initial pose prior YAML (pose stage)");
   app.add_option("--poses-out", cli.poses_out, "Write every published pose to this trajectory CSV");
+  app.add_option("--denoise", cli.denoise,
+                 "Denoising filter or chain (evdenoise --list-filters), or none; overrides denoise.filter");
   app.add_option("--log-level", cli.log_level, "trace, debug, info, warn, error, critical or off");
   app.add_flag("--json", cli.json, "Print the summary as one JSON object");
   app.add_flag("--no-progress", cli.no_progress, "No progress bar even on a terminal");

@@ -67,6 +67,13 @@ std::string format_text(const RunSummary& s) {
   if (s.source.truncated_bytes) line("truncated bytes", fmt::format("{}", s.source.truncated_bytes));
   if (s.source.dropped_packets || s.source.dropped_events)
     line("dropped", fmt::format("{} packets, {} events", s.source.dropped_packets, s.source.dropped_events));
+  if (s.denoise_filter == "none")
+    line("denoise", "none");
+  else
+    line("denoise",
+         fmt::format("{}: kept {} of {} ({:.1f} %), decision latency {} ms", s.denoise_filter, s.denoise_kept,
+                     s.denoise_in, s.denoise_in ? 100.0 * static_cast<double>(s.denoise_kept) / s.denoise_in : 0.0,
+                     s.denoise_latency_us / 1000.0));
   line("windows", fmt::format("{} of {} ms, hop {} ms ({} events)", s.windows, s.window_us / 1000.0, s.hop_us / 1000.0,
                               s.window_events));
   line("wall time",
@@ -83,15 +90,17 @@ std::string format_json(const RunSummary& s) {
       "\"mean_rate_hz\":{:.3f},\"peak_rate_hz\":{:.3f},\"peak_bin_us\":{},\"on_share\":{:.6f},"
       "\"out_of_order\":{},\"out_of_order_dropped\":{},\"discontinuities\":{},\"skipped_non_dvs\":{},"
       "\"invalid_events\":{},\"corrupt_packets\":{},\"truncated_bytes\":{},\"dropped_packets\":{},"
-      "\"dropped_events\":{},\"windows\":{},\"window_events\":{},\"window_us\":{},\"hop_us\":{},"
+      "\"dropped_events\":{},\"denoise_filter\":\"{}\",\"denoise_in\":{},\"denoise_kept\":{},"
+      "\"denoise_latency_us\":{},\"windows\":{},\"window_events\":{},\"window_us\":{},\"hop_us\":{},"
       "\"wall_s\":{:.6f},\"interrupted\":{},\"error\":\"{}\"}}\n",
       json_escape(s.info.name), s.info.format, s.info.geometry.width, s.info.geometry.height, s.info.geometry_known,
       st.events(), st.on_events(), st.first_t_us() ? fmt::format("{}", *st.first_t_us()) : "null",
       st.last_t_us() ? fmt::format("{}", *st.last_t_us()) : "null", st.duration_us(), st.mean_rate_hz(),
       st.peak_rate_hz(), st.peak_bin_us(), st.on_share(), s.source.out_of_order, s.out_of_order_dropped,
       s.source.discontinuities, s.source.skipped_non_dvs, s.source.invalid_events, s.source.corrupt_packets,
-      s.source.truncated_bytes, s.source.dropped_packets, s.source.dropped_events, s.windows, s.window_events,
-      s.window_us, s.hop_us, s.wall_s, s.interrupted, json_escape(s.error));
+      s.source.truncated_bytes, s.source.dropped_packets, s.source.dropped_events, json_escape(s.denoise_filter),
+      s.denoise_in, s.denoise_kept, s.denoise_latency_us, s.windows, s.window_events, s.window_us, s.hop_us, s.wall_s,
+      s.interrupted, json_escape(s.error));
 }
 
 }  // namespace evpipe::app

@@ -13,8 +13,12 @@ struct RunSummary {
   SourceInfo info;
   SourceStats source;
   const StreamStats* stream = nullptr;
-  std::uint64_t windows = 0;        ///< windows passed through the (pass-through) stage
-  std::uint64_t window_events = 0;  ///< events counted in those windows
+  std::string denoise_filter = "none";  ///< filter or chain of the denoise stage
+  std::uint64_t denoise_in = 0;         ///< events into the denoise stage
+  std::uint64_t denoise_kept = 0;       ///< events it kept
+  std::int64_t denoise_latency_us = 0;  ///< its look-ahead (sensor time an event waits for its decision)
+  std::uint64_t windows = 0;            ///< windows of kept events
+  std::uint64_t window_events = 0;      ///< events counted in those windows
   std::int64_t window_us = 0;
   std::int64_t hop_us = 0;
   double wall_s = 0;

@@ -56,6 +56,19 @@ TEST(RunConfig, ErrorsNameFileAndKey) {
   EXPECT_NE(error_of("source: [1, 2").find("t.yaml: line"), std::string::npos);
 }
 
+TEST(RunConfig, DenoiseSectionKeepsParamsInOrder) {
+  const auto c = parse_config("denoise: {filter: 'hotpixel,curvature', params: {curvature.mode: causal, radius: 3}}");
+  EXPECT_EQ(c.denoise.filter, "hotpixel,curvature");
+  ASSERT_EQ(c.denoise.params.size(), 2U);
+  EXPECT_EQ(c.denoise.params[0], (std::pair<std::string, std::string>{"curvature.mode", "causal"}));
+  EXPECT_EQ(c.denoise.params[1], (std::pair<std::string, std::string>{"radius", "3"}));
+  EXPECT_EQ(parse_config(c.to_yaml()).to_yaml(), c.to_yaml());
+  EXPECT_EQ(parse_config("").denoise.filter, "curvature");
+  EXPECT_NE(error_of("denoise: {params: [1, 2]}").find("t.yaml: denoise.params: expected a map"), std::string::npos);
+  EXPECT_NE(error_of("denoise: {filter: ''}").find("denoise.filter"), std::string::npos);
+  EXPECT_NE(error_of("denoise: {filtre: baf}").find("t.yaml: denoise.filtre: unknown key"), std::string::npos);
+}
+
 TEST(RunConfig, MissingFile) {
   try {
     evpipe::config::load_config("/nonexistent/evpipe.yaml");

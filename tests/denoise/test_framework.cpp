@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "evpipe/denoise/chain.hpp"
+#include "evpipe/denoise/filtered_stream.hpp"
 #include "evpipe/denoise/registry.hpp"
 
 namespace evpipe::denoise {
@@ -70,6 +71,71 @@ TEST(FilterChain, ComposesDelayedDecisionsInInputOrder) {
 
 TEST(FilterChain, RejectsEmpty) {
   EXPECT_THROW(FilterChain({}), std::invalid_argument);
+}
+
+EventBatch labelled_batch(std::vector<Event> events, bool discontinuity = false) {
+  EventBatch b;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    b.labels.push_back(events[i].t_us % 20 == 0 ? Label::signal : Label::noise);
+  }
+  b.events = std::move(events);
+  b.discontinuity_before = discontinuity;
+  return b;
+}
+
+TEST(FilteredStream, HandsOutKeptEventsInOrderWithTheirLabels) {
+  EveryOtherDelayed f;
+  FilteredStream s(f);
+  const auto ev = ramp(9);
+  std::vector<EventBatch> out;
+  s.push(labelled_batch({ev.begin(), ev.begin() + 4}), out);
+  EXPECT_EQ(s.pending(), 1U);  // the last event waits for the next one
+  EXPECT_EQ(s.last_decisions().size(), 3U);
+  EXPECT_EQ(s.last_labels().size(), 3U);
+  s.push(labelled_batch({ev.begin() + 4, ev.end()}), out);
+  s.finish(out);
+  EXPECT_EQ(s.pending(), 0U);
+  std::vector<Event> kept;
+  for (const auto& b : out) {
+    EXPECT_FALSE(b.discontinuity_before);
+    ASSERT_EQ(b.labels.size(), b.events.size());
+    for (std::size_t i = 0; i < b.size(); ++i) {
+      EXPECT_EQ(b.labels[i], b.events[i].t_us % 20 == 0 ? Label::signal : Label::noise);
+      kept.push_back(b.events[i]);
+    }
+  }
+  ASSERT_EQ(kept.size(), 5U);  // inputs 0, 2, 4, 6, 8
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    EXPECT_EQ(kept[k], ev[2 * k]);
+  }
+  EXPECT_EQ(s.events_in(), 9U);
+  EXPECT_EQ(s.events_decided(), 9U);
+  EXPECT_EQ(s.events_kept(), 5U);
+}
+
+TEST(FilteredStream, DiscontinuityClosesTheStreamBeforeTheJump) {
+  EveryOtherDelayed f;
+  FilteredStream s(f);
+  const auto ev = ramp(6);
+  std::vector<EventBatch> out;
+  s.push(labelled_batch({ev.begin(), ev.begin() + 3}), out);  // decides 0, 1; keeps 0
+  ASSERT_EQ(out.size(), 1U);
+  out.clear();
+  s.push(labelled_batch({ev.begin() + 3, ev.end()}, true), out);
+  // Event 2 (pending before the jump) is decided at the jump and kept, alone in an unflagged batch; the filter
+  // restarts, so event 3 is the first of a new stream (kept) and carries the flag.
+  ASSERT_EQ(out.size(), 2U);
+  EXPECT_FALSE(out[0].discontinuity_before);
+  ASSERT_EQ(out[0].size(), 1U);
+  EXPECT_EQ(out[0].events[0], ev[2]);
+  EXPECT_TRUE(out[1].discontinuity_before);
+  ASSERT_EQ(out[1].size(), 1U);
+  EXPECT_EQ(out[1].events[0], ev[3]);
+  out.clear();
+  s.finish(out);
+  ASSERT_EQ(out.size(), 1U);
+  EXPECT_FALSE(out[0].discontinuity_before);
+  EXPECT_EQ(out[0].events[0], ev[5]);
 }
 
 TEST(Params, ParsesAndValidates) {

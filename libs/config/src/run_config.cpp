@@ -122,6 +122,19 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
                      {"reconnect_interval_ms", i64(c.device.reconnect_interval_ms)}});
     } else if (section == "window") {
       apply_section(node, name, section, {{"length_us", i64(c.window.length_us)}, {"hop_us", i64(c.window.hop_us)}});
+    } else if (section == "denoise") {
+      apply_section(node, name, section,
+                    {{"filter", str(c.denoise.filter)}, {"params", [&](const YAML::Node& n, const std::string& k) {
+                                                           if (n.IsNull()) return;
+                                                           if (!n.IsMap())
+                                                             fail(name, k, "expected a map of KEY: value");
+                                                           for (const auto& p : n) {
+                                                             const auto key = p.first.as<std::string>();
+                                                             c.denoise.params.emplace_back(
+                                                                 key, scalar<std::string>(p.second, name, k + "." + key,
+                                                                                          "a value"));
+                                                           }
+                                                         }}});
     } else if (section == "pose") {
       apply_section(node, name, section,
                     {{"camera", str(c.pose.camera)},
@@ -129,7 +142,7 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
                      {"prior", str(c.pose.prior)},
                      {"poses_out", str(c.pose.poses_out)}});
     } else {
-      fail(name, section, "unknown section (known: log, source, device, window, pose)");
+      fail(name, section, "unknown section (known: log, source, device, window, denoise, pose)");
     }
   }
   try {
@@ -174,6 +187,7 @@ void RunConfig::validate() const {
   check(window.length_us > 0, "window.length_us", fmt::format("must be > 0, got {}", window.length_us));
   check(window.hop_us > 0 && window.hop_us <= window.length_us, "window.hop_us",
         fmt::format("must be in [1, window.length_us = {}], got {}", window.length_us, window.hop_us));
+  check(!denoise.filter.empty(), "denoise.filter", "must name a filter or chain, or be 'none'");
 }
 
 std::string RunConfig::to_yaml() const {
@@ -205,6 +219,11 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "length_us" << YAML::Value << window.length_us;
   out << YAML::Key << "hop_us" << YAML::Value << window.hop_us;
   out << YAML::EndMap;
+  out << YAML::Key << "denoise" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "filter" << YAML::Value << denoise.filter;
+  out << YAML::Key << "params" << YAML::Value << YAML::BeginMap;
+  for (const auto& [key, value] : denoise.params) out << YAML::Key << key << YAML::Value << value;
+  out << YAML::EndMap << YAML::EndMap;
   out << YAML::Key << "pose" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "camera" << YAML::Value << pose.camera;
   out << YAML::Key << "model" << YAML::Value << pose.model;

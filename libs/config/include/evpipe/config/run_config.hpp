@@ -10,6 +10,8 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace evpipe::config {
 
@@ -49,6 +51,13 @@ struct WindowConfig {
   std::int64_t hop_us = 30'000;     ///< hop between window starts (= length: fixed windows)
 };
 
+struct DenoiseConfig {
+  /// A filter or comma-separated chain by name (`evdenoise --list-filters`); "none" = no denoising.
+  std::string filter = "curvature";
+  /// KEY (or NAME.KEY in a chain) → value, as `evdenoise --set KEY=VALUE`; the filter validates them.
+  std::vector<std::pair<std::string, std::string>> params;
+};
+
 struct PoseFilesConfig {
   std::string camera;     ///< camera calibration YAML
   std::string model;      ///< line model YAML / DXF
@@ -61,6 +70,7 @@ struct RunConfig {
   SourceConfig source;
   DeviceConfig device;
   WindowConfig window;
+  DenoiseConfig denoise;
   PoseFilesConfig pose;
 
   /// Checks ranges and consistency; throws ConfigError naming the key.
