@@ -79,9 +79,34 @@ TEST(Evpipe, ReplaysTheBundledSample) {
   EXPECT_EQ(field(r.out, "last_t_us"), std::to_string(expected.events.back().t_us));
   EXPECT_EQ(field(r.out, "out_of_order"), "0");
   EXPECT_EQ(field(r.out, "error"), "");
-  // 30 ms fixed windows over a 1.5 s recording: every window holds events, each event in exactly one.
-  EXPECT_EQ(field(r.out, "window_events"), std::to_string(expected.events.size()));
+  // The paper's filter by default; 30 ms fixed windows over a 1.5 s recording: each kept event in exactly one.
+  EXPECT_EQ(field(r.out, "denoise_filter"), "curvature");
+  EXPECT_EQ(field(r.out, "denoise_in"), std::to_string(expected.events.size()));
+  const auto kept = std::stoull(field(r.out, "denoise_kept"));
+  EXPECT_GT(kept, expected.events.size() / 4);
+  EXPECT_LT(kept, expected.events.size());
+  EXPECT_EQ(field(r.out, "window_events"), std::to_string(kept));
   EXPECT_EQ(field(r.out, "windows"), "50");
+}
+
+TEST(Evpipe, DenoiseNonePassesEveryEvent) {
+  const auto r = run(kEvpipe + " --replay " + q(kSample) + " --speed max --json --denoise none");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto expected = evpipe::io::read_all(kSample);
+  EXPECT_EQ(field(r.out, "denoise_filter"), "none");
+  EXPECT_EQ(field(r.out, "window_events"), std::to_string(expected.events.size()));
+}
+
+TEST(Evpipe, BadDenoiseParameterIsAConfigurationError) {
+  const auto dir = evpipe::testing::temp_dir("denoise-cfg");
+  const auto cfg = (dir / "bad.yaml").string();
+  std::ofstream(cfg) << "denoise:\n  filter: baf\n  params: {duration_us: -3}\n";
+  const auto r = run(kEvpipe + " --replay " + q(kSample) + " --speed max --config " + q(cfg));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("denoise: baf: duration_us=-3: must be > 0"), std::string::npos) << r.err;
+  const auto u = run(kEvpipe + " --replay " + q(kSample) + " --speed max --denoise nosuch");
+  EXPECT_EQ(u.status, 2);
+  EXPECT_NE(u.err.find("unknown filter 'nosuch'"), std::string::npos) << u.err;
 }
 
 TEST(Evpipe, TextSummaryNamesEverything) {
