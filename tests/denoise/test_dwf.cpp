@@ -71,6 +71,7 @@ TEST(Dwf, SpecDefaultsDependOnTheVariantAndAreValidated) {
   EXPECT_EQ(params[3].key, "threshold");
   EXPECT_EQ(params[3].default_value, "1");
   EXPECT_NO_THROW((void)make_filter("dwf", {{"variant", "jaer"}}, kDavis346));
+  EXPECT_THROW((void)make_filter("dwf", {}, SensorGeometry{9000, 10}), std::invalid_argument);  // int16 positions
   for (const auto& [key, value] : std::vector<std::pair<std::string, std::string>>{
            {"buffer", "0"}, {"l1_radius", "-1"}, {"threshold", "0"}, {"threshold", "73"}, {"variant", "x"}}) {
     try {

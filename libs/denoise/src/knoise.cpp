@@ -1,6 +1,7 @@
 #include "evpipe/denoise/knoise.hpp"
 
 #include <limits>
+#include <utility>
 
 namespace evpipe::denoise {
 
@@ -8,24 +9,32 @@ namespace {
 constexpr std::int64_t kNever = std::numeric_limits<std::int64_t>::min() / 2;  // t − kNever cannot overflow
 }  // namespace
 
-Knoise::Knoise(const SensorGeometry& geometry, KnoiseOptions options)
-    : geometry_(geometry),
-      options_(options),
-      cols_(static_cast<std::size_t>(geometry.width) + 2),
-      rows_(static_cast<std::size_t>(geometry.height) + 2) {
+Knoise::Knoise(const SensorGeometry& geometry, KnoiseOptions options) : geometry_(geometry), options_(options) {
   reset();
 }
 
 void Knoise::reset() noexcept {
-  // dv-processing and CUKE value-initialise their cells: t = 0, coordinates 0, polarity OFF.
-  for (auto* cells : {&cols_, &rows_}) {
-    for (Cell& c : *cells) {
-      c = Cell{0, 0, 0};
-    }
-    cells->front().t_us = kNever;
-    cells->back().t_us = kNever;
+  // dv-processing and CUKE value-initialise their cells: t = 0, coordinate 0, polarity OFF (key 0).
+  for (const auto& [lines, n] : {std::pair{&cols_, geometry_.width}, std::pair{&rows_, geometry_.height}}) {
+    const auto size = static_cast<std::size_t>(n) + 3;
+    lines->t_us.assign(size, 0);
+    lines->key.assign(size, 0);
+    lines->t_us[0] = lines->t_us[size - 2] = lines->t_us[size - 1] = kNever;
   }
   score_ = 0.0F;
+}
+
+int Knoise::count3(const Lines& lines, std::size_t first, std::int32_t key, std::int64_t oldest_us) const noexcept {
+  int n = 0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    // Branch-free: the outcome is data-dependent, so branches would mispredict.
+    const auto u = static_cast<std::uint32_t>(lines.key[first + i] - key + 2);  // 0, 2, 4 when near, same polarity
+    // The CUKE variant does not let our own pixel support us: our own line's cell must be 1 away (u 0 or 4).
+    const bool own_line_cuke = i == 1 && options_.variant == KnoiseOptions::Variant::cuke;
+    const bool near = own_line_cuke ? (u == 0U) | (u == 4U) : (u <= 4U) & ((u & 1U) == 0U);
+    n += static_cast<int>(near & (lines.t_us[first + i] >= oldest_us));
+  }
+  return n;
 }
 
 bool Knoise::accept(const Event& e) noexcept {
@@ -33,25 +42,16 @@ bool Knoise::accept(const Event& e) noexcept {
     score_ = 0.0F;
     return false;
   }
-  const std::int32_t x = e.x;
-  const std::int32_t y = e.y;
   const std::int32_t p = e.polarity ? 1 : 0;
-  const std::int64_t t = e.t_us;
-  const std::int64_t d = options_.duration_us;
-  // A cell at neighbour offset `off` supports when it is recent, of the same polarity and its coordinate is
-  // within 1 of ours; at offset 0 (our own column/row) the CUKE variant needs it 1 away (not our own pixel).
-  const std::int32_t own_min = options_.variant == KnoiseOptions::Variant::cuke ? 1 : 0;
-  auto support = [&](const Cell& c, std::int32_t own, bool centre) noexcept -> int {
-    const std::int32_t dist = c.pos > own ? c.pos - own : own - c.pos;
-    const bool near = dist <= 1 && (!centre || dist >= own_min);
-    return (near && c.polarity == p && t - c.t_us <= d) ? 1 : 0;
-  };
-  Cell* col = cols_.data() + x + 1;
-  Cell* row = rows_.data() + y + 1;
-  const int n = support(col[-1], y, false) + support(col[0], y, true) + support(col[1], y, false) +
-                support(row[-1], x, false) + support(row[0], x, true) + support(row[1], x, false);
-  col[0] = Cell{t, y, p};
-  row[0] = Cell{t, x, p};
+  const std::int32_t kx = 2 * std::int32_t{e.x} + p;
+  const std::int32_t ky = 2 * std::int32_t{e.y} + p;
+  const std::int64_t oldest_us = e.t_us - options_.duration_us;  // t − c.t <= duration  <=>  c.t >= oldest
+  // Columns x−1..x+1 (padded index x..x+2) are tested against our row, rows y−1..y+1 against our column.
+  const int n = count3(cols_, e.x, ky, oldest_us) + count3(rows_, e.y, kx, oldest_us);
+  cols_.t_us[std::size_t{e.x} + 1] = e.t_us;
+  cols_.key[std::size_t{e.x} + 1] = ky;
+  rows_.t_us[std::size_t{e.y} + 1] = e.t_us;
+  rows_.key[std::size_t{e.y} + 1] = kx;
   score_ = static_cast<float>(n);
   return n >= options_.supporters;
 }

@@ -18,6 +18,28 @@ void Stcf::reset() noexcept {
   score_ = 0.0F;
 }
 
+namespace {
+
+// Cells of the (2r+1)² block around `centre` (own pixel included) whose last event is less than tau old and, under
+// `pol_mask` = 1, has our polarity. Branch-free per cell; kRadius > 0 unrolls jAER's 3×3 default.
+template <int kRadius>
+[[gnu::always_inline]] inline int correlated(const std::int64_t* centre, std::int64_t stride, int radius,
+                                             std::int64_t t_us, std::int64_t polarity, std::int64_t pol_mask,
+                                             std::int64_t tau_us) noexcept {
+  const int r = kRadius > 0 ? kRadius : radius;
+  int n = 0;
+  for (int dy = -r; dy <= r; ++dy) {
+    const std::int64_t* row = centre + dy * stride;
+    for (int dx = -r; dx <= r; ++dx) {
+      const std::int64_t v = row[dx];
+      n += static_cast<int>((((v ^ polarity) & pol_mask) == 0) & (t_us - (v >> 1) < tau_us));
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
 bool Stcf::accept(const Event& e) noexcept {
   if (!geometry_.contains(e.x, e.y)) {
     score_ = -1.0F;
@@ -27,28 +49,23 @@ bool Stcf::accept(const Event& e) noexcept {
   std::int64_t* centre = last_.data() + (e.y + r) * stride_ + (e.x + r);
   const std::int64_t t = e.t_us;
   const std::int64_t p = e.polarity ? 1 : 0;
-  const std::int64_t packed = t * 2 + p;
-  if (*centre == kNeverPacked) {
-    *centre = packed;
+  const std::int64_t own = *centre;
+  *centre = t * 2 + p;
+  if (own == kNeverPacked) {  // first event at this pixel: only stamped
     score_ = -1.0F;
     return options_.let_first_event_through;
   }
   // Polarity mask: with polarity_match a cell's low bit must equal ours; without, it is ignored.
   const std::int64_t pol_mask = options_.polarity_match ? 1 : 0;
   const std::int64_t tau = options_.tau_us;
-  int n = 0;
-  for (int dy = -r; dy <= r; ++dy) {
-    const std::int64_t* row = centre + dy * stride_;
-    for (int dx = -r; dx <= r; ++dx) {
-      const std::int64_t v = row[dx];
-      n += (((v ^ p) & pol_mask) == 0 && t - (v >> 1) < tau) ? 1 : 0;
-    }
+  // The block is read after stamping our own cell (age 0, our polarity: it always counts), so the own pixel's
+  // previous event is added back instead when it is to be counted.
+  int n = r == 1 ? correlated<1>(centre, stride_, 1, t, p, pol_mask, tau)
+                 : correlated<0>(centre, stride_, r, t, p, pol_mask, tau);
+  n -= 1;
+  if (!options_.filter_hot_pixels) {
+    n += static_cast<int>((((own ^ p) & pol_mask) == 0) & (t - (own >> 1) < tau));
   }
-  if (options_.filter_hot_pixels) {
-    const std::int64_t v = *centre;
-    n -= (((v ^ p) & pol_mask) == 0 && t - (v >> 1) < tau) ? 1 : 0;
-  }
-  *centre = packed;
   score_ = static_cast<float>(n);
   return n >= options_.k;
 }

@@ -29,27 +29,40 @@ void Ynoise::reset() noexcept {
   score_ = 0.0F;
 }
 
+namespace {
+
+// Density over the (2r+1)² window around `centre`: cells whose last event has our polarity and is at most
+// `duration_us` old. Branch-free per cell; kRadius > 0 unrolls the paper's 3×3 case, 0 takes `radius` at run time.
+template <int kRadius>
+[[gnu::always_inline]] inline int density(const std::int64_t* centre, std::int64_t stride, int radius,
+                                          std::int64_t t_us, std::int64_t polarity, std::int64_t duration_us) noexcept {
+  const int r = kRadius > 0 ? kRadius : radius;
+  int n = 0;
+  for (int dy = -r; dy <= r; ++dy) {
+    const std::int64_t* row = centre + dy * stride;
+    for (int dx = -r; dx <= r; ++dx) {
+      const std::int64_t v = row[dx];
+      // v >> 1 is the time (arithmetic shift: floor, exact for t·2 + p), v & 1 the polarity.
+      n += static_cast<int>(((v & 1) == polarity) & (t_us - (v >> 1) <= duration_us));
+    }
+  }
+  return n;
+}
+
+}  // namespace
+
 bool Ynoise::accept(const Event& e) noexcept {
   if (!geometry_.contains(e.x, e.y)) {
     score_ = 0.0F;
     return false;
   }
   std::int64_t* centre = last_.data() + (e.y + radius_) * stride_ + (e.x + radius_);
-  const std::int64_t t = e.t_us;
   const std::int64_t p = e.polarity ? 1 : 0;
-  const std::int64_t d = options_.duration_us;
-  int density = 0;
-  for (int dy = -radius_; dy <= radius_; ++dy) {
-    const std::int64_t* row = centre + dy * stride_;
-    for (int dx = -radius_; dx <= radius_; ++dx) {
-      const std::int64_t v = row[dx];
-      // v >> 1 is the time (arithmetic shift: floor, exact for t·2 + p), v & 1 the polarity.
-      density += ((v & 1) == p && t - (v >> 1) <= d) ? 1 : 0;
-    }
-  }
-  *centre = pack(t, e.polarity);
-  score_ = static_cast<float>(density);
-  return density >= options_.threshold;
+  const int n = radius_ == 1 ? density<1>(centre, stride_, 1, e.t_us, p, options_.duration_us)
+                             : density<0>(centre, stride_, radius_, e.t_us, p, options_.duration_us);
+  *centre = pack(e.t_us, e.polarity);
+  score_ = static_cast<float>(n);
+  return n >= options_.threshold;
 }
 
 FilterSpec ynoise_spec() {

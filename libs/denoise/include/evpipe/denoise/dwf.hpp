@@ -23,6 +23,7 @@ namespace evpipe::denoise {
 
 struct DwfOptions {
   enum class Variant : std::uint8_t { cuke, jaer };
+  static constexpr int kMaxSensorSide = 8000;  ///< coordinates are held in int16
   Variant variant = Variant::cuke;
   int buffer = 36;    ///< events per window
   int l1_radius = 9;  ///< |dx| + |dy| <= l1_radius supports
@@ -38,18 +39,22 @@ class Dwf {
   void reset() noexcept;
 
  private:
-  // A FIFO of positions; order inside does not matter for counting, so it is a ring with one write index.
-  struct Window {
-    std::vector<std::int32_t> x, y;
-    std::size_t next = 0;
-    void push(std::int32_t px, std::int32_t py) noexcept;
-  };
-  [[nodiscard]] int count_near(const Window& w, std::int32_t x, std::int32_t y) const noexcept;
+  // Both FIFOs live in one pair of coordinate arrays (x, y), int16 so that 8 / 16 / 32 lanes compare at once:
+  // [signal window | padding | noise window | padding], each window padded to a multiple of kBlock with positions
+  // so far away that they never support. Order inside a window does not matter for counting, so a window is a
+  // ring with one write index.
+  static constexpr std::size_t kBlock = 16;
+  static constexpr std::int16_t kFar = -16'000;  // |dx| + |dy| stays < 32 768 for sensors up to 8 000 px
+
+  [[nodiscard]] int count_near(std::int16_t x, std::int16_t y) const noexcept;
+  void push(std::size_t window, std::int16_t x, std::int16_t y) noexcept;
 
   SensorGeometry geometry_;
   DwfOptions options_;
-  Window signal_, noise_;
-  std::int64_t fill_seen_ = 0;  // jAER: events consumed while filling
+  std::size_t padded_;  // buffer rounded up to kBlock
+  std::vector<std::int16_t> x_, y_;
+  std::size_t next_[2] = {0, 0};  // write index of the signal (0) and noise (1) window
+  std::int64_t fill_seen_ = 0;    // jAER: events consumed while filling
   float score_ = 0.0F;
 };
 
