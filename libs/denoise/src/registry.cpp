@@ -8,6 +8,11 @@
 
 #include "evpipe/denoise/baf.hpp"
 #include "evpipe/denoise/chain.hpp"
+#include "evpipe/denoise/dwf.hpp"
+#include "evpipe/denoise/hotpixel.hpp"
+#include "evpipe/denoise/knoise.hpp"
+#include "evpipe/denoise/stcf.hpp"
+#include "evpipe/denoise/ynoise.hpp"
 
 namespace evpipe::denoise {
 
@@ -15,6 +20,11 @@ const std::vector<FilterSpec>& filter_specs() {
   // One line per filter; each filter's header declares its spec.
   static const std::vector<FilterSpec> specs = {
       baf_spec(),
+      knoise_spec(),
+      ynoise_spec(),
+      stcf_spec(),
+      dwf_spec(),
+      hotpixel_spec(),
   };
   return specs;
 }
