@@ -31,8 +31,7 @@ bool Baf::accept(const Event& e) noexcept {
   std::int64_t* centre = last_t_us_.data() + (e.y + 1) * stride_ + (e.x + 1);
   const std::int64_t* up = centre - stride_;
   const std::int64_t* down = centre + stride_;
-  const std::int64_t newest =
-      std::max({up[-1], up[0], up[1], centre[-1], centre[1], down[-1], down[0], down[1]});
+  const std::int64_t newest = std::max({up[-1], up[0], up[1], centre[-1], centre[1], down[-1], down[0], down[1]});
   *centre = e.t_us;
   score_ = newest <= kNever ? -std::numeric_limits<float>::max() : -static_cast<float>(e.t_us - newest);
   return e.t_us - newest < options_.duration_us;  // strict, as dv-processing

@@ -92,8 +92,7 @@ std::string Params::choice(std::string_view key, std::string_view default_value,
   fail(key, fmt::format("must be one of {}", joined));
 }
 
-void Params::require_range(std::string_view key, double value, double lo, double hi, bool lo_open,
-                           bool hi_open) const {
+void Params::require_range(std::string_view key, double value, double lo, double hi, bool lo_open, bool hi_open) const {
   const bool ok_lo = lo_open ? value > lo : value >= lo;
   const bool ok_hi = hi_open ? value < hi : value <= hi;
   if (!ok_lo || !ok_hi) {
@@ -110,8 +109,8 @@ void Params::require_positive(std::string_view key, double value) const {
 void Params::check_all_used() const {
   for (const auto& [key, value] : values_) {
     if (asked_.find(key) == asked_.end()) {
-      throw std::invalid_argument(fmt::format("{}: unknown parameter '{}' (known: {})", filter_, key,
-                                              fmt::join(asked_, ", ")));
+      throw std::invalid_argument(
+          fmt::format("{}: unknown parameter '{}' (known: {})", filter_, key, fmt::join(asked_, ", ")));
     }
   }
 }

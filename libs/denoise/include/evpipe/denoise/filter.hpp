@@ -78,13 +78,16 @@ class Filter {
 /// accepted or rejected), the adapter exposes it.
 template <class Impl>
 concept PerEventDecision = requires(Impl impl, const Event& e) {
-  { impl.accept(e) } noexcept -> std::same_as<bool>;
-  { impl.reset() } noexcept;
+  { impl.accept(e) }
+  noexcept->std::same_as<bool>;
+  { impl.reset() }
+  noexcept;
 };
 
 template <class Impl>
 concept PerEventScore = requires(const Impl impl) {
-  { impl.last_score() } noexcept -> std::convertible_to<float>;
+  { impl.last_score() }
+  noexcept->std::convertible_to<float>;
 };
 
 /// Adapts a per-event decision to the Filter interface. The same `accept` serves a whole batch here and one

@@ -33,7 +33,8 @@ std::vector<ParamInfo> describe(const FilterSpec& spec);
 
 /// One filter with the given KEY=VALUE settings. Throws std::invalid_argument for an unknown filter (listing the
 /// known ones), an unknown key or a bad value.
-std::unique_ptr<Filter> make_filter(std::string_view name, const std::vector<std::pair<std::string, std::string>>& settings,
+std::unique_ptr<Filter> make_filter(std::string_view name,
+                                    const std::vector<std::pair<std::string, std::string>>& settings,
                                     const SensorGeometry& geometry);
 
 /// A comma-separated chain ("hotpixel,curvature"): each event goes through the filters in order and is kept only
