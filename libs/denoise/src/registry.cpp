@@ -8,6 +8,7 @@
 
 #include "evpipe/denoise/baf.hpp"
 #include "evpipe/denoise/chain.hpp"
+#include "evpipe/denoise/curvature.hpp"
 #include "evpipe/denoise/dwf.hpp"
 #include "evpipe/denoise/hotpixel.hpp"
 #include "evpipe/denoise/knoise.hpp"
@@ -19,6 +20,7 @@ namespace evpipe::denoise {
 const std::vector<FilterSpec>& filter_specs() {
   // One line per filter; each filter's header declares its spec.
   static const std::vector<FilterSpec> specs = {
+      curvature_spec(),  // the paper's filter first
       baf_spec(),
       knoise_spec(),
       ynoise_spec(),

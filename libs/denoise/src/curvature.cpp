@@ -1,0 +1,672 @@
+#include "evpipe/denoise/curvature.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <limits>
+#include <stdexcept>
+
+#include "evpipe/denoise/neighbourhood.hpp"
+#include "evpipe/denoise/noise_rate.hpp"
+#include "evpipe/denoise/quadric.hpp"
+#include "evpipe/denoise/selection.hpp"
+
+namespace evpipe::denoise {
+
+// ------------------------------------------------------------------------------------------------ options
+
+namespace {
+
+[[noreturn]] void bad_option(std::string_view key, const std::string& value, std::string_view why) {
+  throw std::invalid_argument(fmt::format("curvature: {}={}: {}", key, value, why));
+}
+
+std::int64_t floor_div(std::int64_t a, std::int64_t b) noexcept {
+  const std::int64_t q = a / b;
+  return (a % b != 0 && (a < 0) != (b < 0)) ? q - 1 : q;
+}
+
+constexpr std::int64_t kMaxWindowUs = 1'000'000'000;  // keeps a block + margins within int32 µs offsets
+
+}  // namespace
+
+void validate(const CurvatureOptions& o) {
+  if (!(o.radius_px > 0.0 && o.radius_px <= kMaxSphereRadiusPx)) {
+    bad_option("radius", fmt::format("{}", o.radius_px), "must be in (0, 4] pixels (at most 64 sites)");
+  }
+  if (o.lt_us < 1 || o.lt_us > kMaxSphereLtUs) {
+    bad_option("lt_us", fmt::format("{}", o.lt_us), fmt::format("must be in [1, {}]", kMaxSphereLtUs));
+  }
+  if (o.density_threshold < 1) {
+    bad_option("density_threshold", fmt::format("{}", o.density_threshold), "must be an integer >= 1");
+  }
+  if (!(o.keep_fraction > 0.0 && o.keep_fraction <= 1.0)) {
+    bad_option("keep_fraction", fmt::format("{}", o.keep_fraction), "must be in (0, 1]");
+  }
+  if (o.window_us <= 0 || o.window_us > kMaxWindowUs) {
+    bad_option("window_us", fmt::format("{}", o.window_us), fmt::format("must be in [1, {}]", kMaxWindowUs));
+  }
+  if (!(o.target_noise_pass > 0.0 && o.target_noise_pass < 1.0)) {
+    bad_option("target_noise_pass", fmt::format("{}", o.target_noise_pass), "must be in (0, 1)");
+  }
+  if (o.adaptive_period_us <= 0) {
+    bad_option("adaptive_period_us", fmt::format("{}", o.adaptive_period_us), "must be > 0");
+  }
+}
+
+std::string_view to_string(CurvatureMode m) noexcept {
+  switch (m) {
+    case CurvatureMode::frames:
+      return "frames";
+    case CurvatureMode::stream:
+      return "stream";
+    case CurvatureMode::causal:
+      return "causal";
+  }
+  return "?";
+}
+
+std::string_view to_string(CurvatureRule r) noexcept {
+  switch (r) {
+    case CurvatureRule::median:
+      return "median";
+    case CurvatureRule::shortest:
+      return "shortest";
+    case CurvatureRule::flattest:
+      return "flattest";
+  }
+  return "?";
+}
+
+// -------------------------------------------------------------------------------------------------- judge
+
+namespace {
+
+// Everything after the neighbourhood: density test (with the adaptive threshold), singular test, batched
+// quadric fits, per-block selection and the decisions. Shared by every backend and mode and by
+// curvature_batch, so that equal per-site statistics give equal decisions whatever order queries arrive in
+// (only the period of the adaptive estimator needs time order, and queries never straddle a period).
+class Judge {
+ public:
+  Judge(const CurvatureOptions& o, const Sphere& sphere, const SensorGeometry& g)
+      : o_(o),
+        sites_(sphere.size()),
+        table_(sphere),
+        batch_(sphere),
+        rate_(make_exposure_model(sphere, o.mode, o.window_us, g), o) {}
+
+  void reset() {
+    rate_.reset();
+    prev_region_ = {};
+    have_prev_ = false;
+    lanes_ = 0;
+    density_passed_ = undefined_ = dropped_ = blocks_ = 0;
+    started_ = false;
+  }
+  void set_trace(CurvatureTrace* t) noexcept { trace_ = t; }
+
+  /// The stream's first event (the adaptive estimator's first period is observed from there).
+  void start(std::int64_t t_us) {
+    if (started_) return;
+    started_ = true;
+    rate_.start(t_us);
+  }
+
+  void begin_block(std::int64_t block, std::size_t n) {
+    block_ = block;
+    rho_.assign(n, 0);
+    status_.assign(n, CurvatureStatus::outside);
+    curv_.assign(n, 0.0);
+    if (trace_ != nullptr && trace_->with_sites) {
+      site_counts_.assign(n * static_cast<std::size_t>(sites_), 0);
+      site_sums_.assign(n * static_cast<std::size_t>(sites_), 0);
+    }
+    ++blocks_;
+  }
+  /// Causal blocks grow one event at a time.
+  std::size_t open_slot() {
+    rho_.push_back(0);
+    status_.push_back(CurvatureStatus::outside);
+    curv_.push_back(0.0);
+    if (trace_ != nullptr && trace_->with_sites) {
+      site_counts_.resize(site_counts_.size() + static_cast<std::size_t>(sites_), 0);
+      site_sums_.resize(site_sums_.size() + static_cast<std::size_t>(sites_), 0);
+    }
+    return rho_.size() - 1;
+  }
+  [[nodiscard]] std::size_t slots() const noexcept { return rho_.size(); }
+
+  void add(std::size_t slot, std::int64_t t_us, const std::int32_t* counts, const std::int64_t* sums) {
+    std::uint64_t mask = 0;
+    std::int32_t rho = 0;
+    for (int s = 0; s < sites_; ++s) {
+      rho += counts[s];
+      mask |= static_cast<std::uint64_t>(counts[s] > 0) << s;
+    }
+    rho_[slot] = rho;
+    if (trace_ != nullptr && trace_->with_sites) {
+      std::copy_n(counts, sites_, site_counts_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
+      std::copy_n(sums, sites_, site_sums_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
+    }
+    if (rho < rate_.threshold(t_us)) {
+      status_[slot] = CurvatureStatus::density_fail;
+      rate_.count_failure();
+      return;
+    }
+    ++density_passed_;
+    if (!o_.curvature) {
+      status_[slot] = CurvatureStatus::density_only;
+      return;
+    }
+    if (!table_.full_rank(mask)) {
+      status_[slot] = CurvatureStatus::undefined;
+      ++undefined_;
+      return;
+    }
+    status_[slot] = CurvatureStatus::selected;  // fitted; the selection may still drop it
+    batch_.set(lanes_, counts, sums);
+    lane_slot_[lanes_++] = slot;
+    if (lanes_ == QuadricBatch::kLanes) flush();
+  }
+
+  void flush() {
+    if (lanes_ == 0) return;
+    double c[QuadricBatch::kLanes];
+    bool ok[QuadricBatch::kLanes];
+    batch_.solve(lanes_, c, ok);
+    for (int l = 0; l < lanes_; ++l) {
+      if (ok[l]) {
+        curv_[lane_slot_[l]] = c[l];
+      } else {
+        status_[lane_slot_[l]] = CurvatureStatus::undefined;
+        ++undefined_;
+      }
+    }
+    lanes_ = 0;
+  }
+
+  /// frames/stream: selection over the block's population, then every slot's decision.
+  void finish_block(Decisions& out) {
+    flush();
+    const ConsistencyRegion region = select_block(true);
+    emit(0, rho_.size(), region, out);
+  }
+
+  /// causal: decisions of slots [from, to) against the previous block's region.
+  void emit_causal(std::size_t from, std::size_t to, Decisions& out) {
+    flush();
+    const bool judged = have_prev_ && prev_block_ == block_ - 1;
+    for (std::size_t i = from; i < to; ++i) {
+      if (status_[i] == CurvatureStatus::selected && judged && !prev_region_.contains(curv_[i])) {
+        status_[i] = CurvatureStatus::not_selected;
+        ++dropped_;
+      }
+    }
+    emit(from, to, judged ? prev_region_ : ConsistencyRegion{}, out);
+  }
+  /// causal: the block is complete; its region judges the next block.
+  void end_block_causal() {
+    flush();
+    prev_region_ = select_block(false);
+    prev_block_ = block_;
+    have_prev_ = true;
+  }
+
+  void report(std::vector<ReportItem>& items) const {
+    items.push_back({"density_passed", static_cast<double>(density_passed_)});
+    items.push_back({"curvature_undefined", static_cast<double>(undefined_)});
+    items.push_back({"curvature_dropped", static_cast<double>(dropped_)});
+    items.push_back({"blocks", static_cast<double>(blocks_)});
+    items.push_back({"noise_rate_hz", rate_.rate_hz()});
+    items.push_back({"density_threshold_used", static_cast<double>(rate_.current_threshold())});
+    items.push_back({"adaptive_periods", static_cast<double>(rate_.periods())});
+  }
+
+ private:
+  ConsistencyRegion select_block(bool apply) {
+    values_.clear();
+    which_.clear();
+    for (std::size_t i = 0; i < status_.size(); ++i) {
+      if (status_[i] == CurvatureStatus::selected) {
+        values_.push_back(curv_[i]);
+        which_.push_back(static_cast<std::uint32_t>(i));
+      }
+    }
+    const ConsistencyRegion region = select_consistent(values_, o_.keep_fraction, o_.rule, keep_);
+    if (apply) {
+      for (std::size_t k = 0; k < which_.size(); ++k) {
+        if (keep_[k] == 0) {
+          status_[which_[k]] = CurvatureStatus::not_selected;
+          ++dropped_;
+        }
+      }
+    }
+    return region;
+  }
+
+  void emit(std::size_t from, std::size_t to, const ConsistencyRegion& region, Decisions& out) {
+    for (std::size_t i = from; i < to; ++i) {
+      const CurvatureStatus st = status_[i];
+      bool keep = false;
+      double score = static_cast<double>(rho_[i]);
+      switch (st) {
+        case CurvatureStatus::outside:
+        case CurvatureStatus::density_fail:
+          break;
+        case CurvatureStatus::density_only:
+          keep = true;
+          break;
+        case CurvatureStatus::undefined:
+          keep = o_.singular == SingularPolicy::keep;
+          break;
+        case CurvatureStatus::selected:
+        case CurvatureStatus::not_selected:
+          keep = st == CurvatureStatus::selected;
+          score += region.consistency(curv_[i]);
+          break;
+      }
+      out.keep.push_back(keep ? 1 : 0);
+      out.score.push_back(static_cast<float>(score));
+      if (trace_ != nullptr) {
+        trace_->rho.push_back(rho_[i]);
+        trace_->status.push_back(st);
+        trace_->curvature.push_back(curv_[i]);
+        if (trace_->with_sites) {
+          const auto b = static_cast<std::ptrdiff_t>(i * static_cast<std::size_t>(sites_));
+          trace_->counts.insert(trace_->counts.end(), site_counts_.begin() + b, site_counts_.begin() + b + sites_);
+          trace_->sums_dt.insert(trace_->sums_dt.end(), site_sums_.begin() + b, site_sums_.begin() + b + sites_);
+        }
+      }
+    }
+  }
+
+  CurvatureOptions o_;
+  int sites_;
+  SingularMaskTable table_;
+  QuadricBatch batch_;
+  NoiseRateEstimator rate_;
+  CurvatureTrace* trace_ = nullptr;
+  bool started_ = false;
+
+  std::int64_t block_ = 0;
+  std::vector<std::int32_t> rho_;
+  std::vector<CurvatureStatus> status_;
+  std::vector<double> curv_;
+  std::vector<std::int32_t> site_counts_;
+  std::vector<std::int64_t> site_sums_;
+  int lanes_ = 0;
+  std::size_t lane_slot_[QuadricBatch::kLanes] = {};
+
+  std::vector<double> values_;
+  std::vector<std::uint32_t> which_;
+  std::vector<std::uint8_t> keep_;
+  ConsistencyRegion prev_region_;
+  std::int64_t prev_block_ = 0;
+  bool have_prev_ = false;
+
+  std::int64_t density_passed_ = 0, undefined_ = 0, dropped_ = 0, blocks_ = 0;
+};
+
+std::int64_t sat_add(std::int64_t a, std::int64_t b) noexcept {
+  std::int64_t r = 0;
+  if (__builtin_add_overflow(a, b, &r))
+    return b > 0 ? std::numeric_limits<std::int64_t>::max() : std::numeric_limits<std::int64_t>::min();
+  return r;
+}
+
+auto by_time = [](const Event& e, std::int64_t t) { return e.t_us < t; };
+auto time_before = [](std::int64_t t, const Event& e) { return t < e.t_us; };
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------------- filter
+
+struct CurvatureFilter::Impl {
+  Impl(const CurvatureOptions& o, const SensorGeometry& g)
+      : options((validate(o), o)), geometry(g), sphere(o.radius_px, o.lt_us, o.inclusive_radius), judge(o, sphere, g) {
+    if (options.backend == NeighbourhoodBackend::flann) {
+      flann = std::make_unique<FlannBallIndex>(sphere);
+    } else if (options.mode == CurvatureMode::causal) {
+      ring = std::make_unique<GridRingIndex>(sphere, geometry);
+    } else {
+      grid = std::make_unique<GridBlockIndex>(sphere, geometry);
+    }
+  }
+
+  CurvatureOptions options;
+  SensorGeometry geometry;
+  Sphere sphere;
+  Judge judge;
+  std::unique_ptr<GridBlockIndex> grid;
+  std::unique_ptr<GridRingIndex> ring;
+  std::unique_ptr<FlannBallIndex> flann;
+
+  std::vector<Event> buf;  // frames/stream: margin + undecided events; causal + flann: margin + this push
+  std::size_t head = 0;    // first undecided event in buf
+  bool have_last = false;
+  std::int64_t last_t = 0;
+  bool block_open = false;  // causal
+  std::int64_t causal_block = 0;
+  std::size_t emitted = 0;  // causal: slots of the open block already decided
+  std::vector<std::uint32_t> members;
+  std::int32_t counts[kMaxSphereSites] = {};
+  std::int64_t sums[kMaxSphereSites] = {};
+
+  void append(EventSpan events) {
+    buf.reserve(buf.size() + events.size());
+    for (Event e : events) {
+      if (!have_last) {
+        have_last = true;
+        last_t = e.t_us;
+        judge.start(e.t_us);
+      }
+      // Out-of-order input (contract violation) is treated as arriving at the latest time seen.
+      e.t_us = std::max(e.t_us, last_t);
+      last_t = e.t_us;
+      buf.push_back(e);
+    }
+  }
+
+  void process_block(Decisions& out) {
+    const std::int64_t w = options.window_us;
+    const std::int64_t reach = sphere.reach_us();
+    const std::int64_t k = floor_div(buf[head].t_us, w);
+    const std::int64_t blk_start = k * w;
+    const std::int64_t blk_end = blk_start + w;
+    const auto begin = buf.begin();
+    const std::size_t b0 = head;
+    const auto b1 = static_cast<std::size_t>(
+        std::lower_bound(begin + static_cast<std::ptrdiff_t>(b0), buf.end(), blk_end, by_time) - begin);
+    std::size_t e0 = b0;
+    std::size_t e1 = b1;
+    const bool stream = options.mode == CurvatureMode::stream;
+    if (stream) {
+      e0 = static_cast<std::size_t>(
+          std::lower_bound(begin, begin + static_cast<std::ptrdiff_t>(b0), blk_start - reach, by_time) - begin);
+      e1 = static_cast<std::size_t>(
+          std::upper_bound(begin + static_cast<std::ptrdiff_t>(b1), buf.end(), blk_end - 1 + reach, time_before) -
+          begin);
+    }
+    const EventSpan span(buf.data() + e0, e1 - e0);
+    judge.begin_block(k, b1 - b0);
+    const std::size_t q0 = b0 - e0;
+    const std::size_t q1 = b1 - e0;
+    if (grid) {
+      grid->build(span);
+      const std::int64_t lo = stream ? std::numeric_limits<std::int64_t>::min() / 2 : blk_start;
+      const std::int64_t hi = stream ? std::numeric_limits<std::int64_t>::max() / 2 : blk_end - 1;
+      auto sink = [&](std::size_t i, const std::int32_t* c, const std::int64_t* s) {
+        judge.add(i - q0, span[i].t_us, c, s);
+      };
+      // Queries arrive grouped by pixel: split them at the adaptive estimator's period borders so that all
+      // events of one period are judged before any of the next.
+      std::size_t a = q0;
+      while (a < q1) {
+        std::size_t b = q1;
+        if (options.adaptive) {
+          const std::int64_t period_end =
+              (floor_div(span[a].t_us, options.adaptive_period_us) + 1) * options.adaptive_period_us;
+          b = static_cast<std::size_t>(std::lower_bound(span.begin() + static_cast<std::ptrdiff_t>(a),
+                                                        span.begin() + static_cast<std::ptrdiff_t>(q1), period_end,
+                                                        by_time) -
+                                       span.begin());
+        }
+        grid->query(a, b, lo, hi, sink);
+        a = b;
+      }
+    } else {
+      flann->build(span, geometry);
+      for (std::size_t i = q0; i < q1; ++i) {
+        if (!geometry.contains(span[i].x, span[i].y)) continue;
+        flann->ball(span[i], members);
+        accumulate_ball(
+            sphere, span, i, members, [](std::size_t) { return false; }, counts, sums);
+        judge.add(i - q0, span[i].t_us, counts, sums);
+      }
+    }
+    judge.finish_block(out);
+    head = b1;
+    // Keep the margin the next block's balls reach back into.
+    const std::int64_t keep_from = stream ? sat_add((k + 1) * w, -reach) : std::numeric_limits<std::int64_t>::max();
+    const auto drop = static_cast<std::size_t>(
+        std::lower_bound(begin, begin + static_cast<std::ptrdiff_t>(head), keep_from, by_time) - begin);
+    compact(drop);
+  }
+
+  void compact(std::size_t drop) {
+    if (drop == 0) return;
+    if (drop == buf.size() || drop >= buf.size() / 2 || drop > 65536) {
+      buf.erase(buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(drop));
+      head -= drop;
+    }
+  }
+
+  bool block_ready() const {
+    const std::int64_t blk_end = (floor_div(buf[head].t_us, options.window_us) + 1) * options.window_us;
+    const std::int64_t need = options.mode == CurvatureMode::stream ? sat_add(blk_end, sphere.reach_us()) : blk_end;
+    return last_t >= need;
+  }
+
+  void push_blocks(EventSpan events, Decisions& out) {
+    append(events);
+    while (head < buf.size() && block_ready()) process_block(out);
+  }
+
+  void push_causal(EventSpan events, Decisions& out) {
+    const std::size_t first_new = buf.size();
+    append(events);
+    if (flann) flann->build(EventSpan(buf), geometry);
+    for (std::size_t i = first_new; i < buf.size(); ++i) {
+      const Event& e = buf[i];
+      const std::int64_t k = floor_div(e.t_us, options.window_us);
+      if (!block_open || k != causal_block) {
+        if (block_open) {
+          judge.emit_causal(emitted, judge.slots(), out);
+          judge.end_block_causal();
+        }
+        judge.begin_block(k, 0);
+        block_open = true;
+        causal_block = k;
+        emitted = 0;
+      }
+      const std::size_t slot = judge.open_slot();
+      if (!geometry.contains(e.x, e.y)) continue;
+      if (ring) {
+        ring->query_and_insert(e, counts, sums);
+      } else {
+        flann->ball(e, members);
+        accumulate_ball(
+            sphere, EventSpan(buf), i, members, [i](std::size_t j) { return j > i; }, counts, sums);
+      }
+      judge.add(slot, e.t_us, counts, sums);
+    }
+    if (block_open) {
+      judge.emit_causal(emitted, judge.slots(), out);
+      emitted = judge.slots();
+    }
+    // The FLANN backend rebuilds its index per push over the margin the next balls reach back into.
+    if (flann && !buf.empty()) {
+      const auto drop = static_cast<std::size_t>(
+          std::lower_bound(buf.begin(), buf.end(), sat_add(last_t, -sphere.reach_us()), by_time) - buf.begin());
+      buf.erase(buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(drop));
+    } else {
+      buf.clear();
+    }
+    head = buf.size();
+  }
+
+  void reset() {
+    judge.reset();
+    buf.clear();
+    head = 0;
+    have_last = false;
+    block_open = false;
+    emitted = 0;
+    if (ring) ring->reset();
+  }
+};
+
+CurvatureFilter::CurvatureFilter(const CurvatureOptions& options, const SensorGeometry& geometry)
+    : impl_(std::make_unique<Impl>(options, geometry)) {}
+CurvatureFilter::~CurvatureFilter() = default;
+
+void CurvatureFilter::push(EventSpan events, Decisions& out) {
+  if (impl_->options.mode == CurvatureMode::causal) {
+    impl_->push_causal(events, out);
+  } else {
+    impl_->push_blocks(events, out);
+  }
+}
+
+void CurvatureFilter::finish(Decisions& out) {
+  if (impl_->options.mode == CurvatureMode::causal) return;  // decided on arrival
+  while (impl_->head < impl_->buf.size()) impl_->process_block(out);
+}
+
+void CurvatureFilter::reset() {
+  impl_->reset();
+}
+
+std::size_t CurvatureFilter::pending() const noexcept {
+  return impl_->options.mode == CurvatureMode::causal ? 0 : impl_->buf.size() - impl_->head;
+}
+
+std::int64_t CurvatureFilter::latency_us() const noexcept {
+  switch (impl_->options.mode) {
+    case CurvatureMode::frames:
+      return impl_->options.window_us;
+    case CurvatureMode::stream:
+      return impl_->options.window_us + impl_->sphere.reach_us();
+    case CurvatureMode::causal:
+      return 0;
+  }
+  return 0;
+}
+
+std::vector<ReportItem> CurvatureFilter::report() const {
+  std::vector<ReportItem> items;
+  impl_->judge.report(items);
+  items.push_back({"latency_us", static_cast<double>(latency_us())});
+  return items;
+}
+
+void CurvatureFilter::set_trace(CurvatureTrace* trace) noexcept {
+  impl_->judge.set_trace(trace);
+}
+const Sphere& CurvatureFilter::sphere() const noexcept {
+  return impl_->sphere;
+}
+const CurvatureOptions& CurvatureFilter::options() const noexcept {
+  return impl_->options;
+}
+
+// -------------------------------------------------------------------------------------------------- batch
+
+Decisions curvature_batch(EventSpan all_events, const CurvatureOptions& options, const SensorGeometry& geometry,
+                          CurvatureTrace* trace) {
+  validate(options);
+  const Sphere sphere(options.radius_px, options.lt_us, options.inclusive_radius);
+  Judge judge(options, sphere, geometry);
+  judge.set_trace(trace);
+  Decisions out;
+  if (all_events.empty()) return out;
+  std::vector<Event> events(all_events.begin(), all_events.end());
+  for (std::size_t i = 1; i < events.size(); ++i) events[i].t_us = std::max(events[i].t_us, events[i - 1].t_us);
+  judge.start(events.front().t_us);
+  FlannBallIndex index(sphere);
+  index.build(events, geometry);
+  std::vector<std::uint32_t> members;
+  std::int32_t counts[kMaxSphereSites];
+  std::int64_t sums[kMaxSphereSites];
+  out.keep.reserve(events.size());
+  out.score.reserve(events.size());
+  const std::int64_t w = options.window_us;
+  std::size_t b0 = 0;
+  while (b0 < events.size()) {
+    const std::int64_t k = floor_div(events[b0].t_us, w);
+    std::size_t b1 = b0;
+    while (b1 < events.size() && floor_div(events[b1].t_us, w) == k) ++b1;
+    judge.begin_block(k, options.mode == CurvatureMode::causal ? 0 : b1 - b0);
+    for (std::size_t i = b0; i < b1; ++i) {
+      const std::size_t slot = options.mode == CurvatureMode::causal ? judge.open_slot() : i - b0;
+      if (!geometry.contains(events[i].x, events[i].y)) continue;
+      index.ball(events[i], members);
+      switch (options.mode) {
+        case CurvatureMode::stream:
+          accumulate_ball(
+              sphere, events, i, members, [](std::size_t) { return false; }, counts, sums);
+          break;
+        case CurvatureMode::frames:
+          accumulate_ball(
+              sphere, events, i, members, [&](std::size_t j) { return floor_div(events[j].t_us, w) != k; }, counts,
+              sums);
+          break;
+        case CurvatureMode::causal:
+          accumulate_ball(
+              sphere, events, i, members, [i](std::size_t j) { return j > i; }, counts, sums);
+          break;
+      }
+      judge.add(slot, events[i].t_us, counts, sums);
+    }
+    if (options.mode == CurvatureMode::causal) {
+      judge.emit_causal(0, b1 - b0, out);
+      judge.end_block_causal();
+    } else {
+      judge.finish_block(out);
+    }
+    b0 = b1;
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------------- spec
+
+CurvatureOptions curvature_options_from(Params& p) {
+  CurvatureOptions o;
+  o.radius_px = p.real("radius", o.radius_px, "ball radius r in pixels (time counts 1 px per lt_us), in (0, 4]");
+  p.require_range("radius", o.radius_px, 0.0, kMaxSphereRadiusPx, true, false);
+  o.lt_us = p.integer("lt_us", o.lt_us, "Lt: microseconds that count like one pixel");
+  p.require_range("lt_us", static_cast<double>(o.lt_us), 1.0, static_cast<double>(kMaxSphereLtUs));
+  o.inclusive_radius = p.boolean("inclusive_radius", o.inclusive_radius, "ball test <= r (true) or < r (false)");
+  o.density_threshold = p.integer("density_threshold", o.density_threshold,
+                                  "rho_TH: keep for the curvature stage iff 1 + other events in the ball >= it");
+  p.require_range("density_threshold", static_cast<double>(o.density_threshold), 1.0, 1e9);
+  o.curvature = p.boolean("curvature", o.curvature, "run the curvature stage (false = density only)");
+  o.keep_fraction = p.real("keep_fraction", o.keep_fraction, "share of each block's population kept, in (0, 1]");
+  p.require_range("keep_fraction", o.keep_fraction, 0.0, 1.0, true, false);
+  const std::string rule = p.choice("rule", "median", {"median", "shortest", "flattest"},
+                                    "consistent = closest to the median, shortest interval, or smallest |c|");
+  o.rule = rule == "median"     ? CurvatureRule::median
+           : rule == "shortest" ? CurvatureRule::shortest
+                                : CurvatureRule::flattest;
+  o.singular = p.choice("singular", "reject", {"reject", "keep"},
+                        "rank-deficient fit: drop the event, or keep it without curvature") == "keep"
+                   ? SingularPolicy::keep
+                   : SingularPolicy::reject;
+  o.window_us = p.integer("window_us", o.window_us, "block length: curvature population and frames");
+  p.require_range("window_us", static_cast<double>(o.window_us), 1.0, static_cast<double>(kMaxWindowUs));
+  const std::string mode = p.choice("mode", "stream", {"stream", "frames", "causal"},
+                                    "stream = full ball (latency window + reach), frames = independent blocks, "
+                                    "causal = past only (latency 0)");
+  o.mode = mode == "stream" ? CurvatureMode::stream : mode == "frames" ? CurvatureMode::frames : CurvatureMode::causal;
+  o.backend = p.choice("backend", "grid", {"grid", "flann"}, "neighbourhood index (identical results)") == "flann"
+                  ? NeighbourhoodBackend::flann
+                  : NeighbourhoodBackend::grid;
+  o.adaptive = p.boolean("adaptive", o.adaptive, "set density_threshold per period from the estimated noise rate");
+  o.target_noise_pass = p.real("target_noise_pass", o.target_noise_pass,
+                               "adaptive: largest share of pure-noise events passing the density test, in (0, 1)");
+  p.require_range("target_noise_pass", o.target_noise_pass, 0.0, 1.0, true, true);
+  o.adaptive_period_us = p.integer("adaptive_period_us", o.adaptive_period_us, "adaptive: estimation period");
+  p.require_positive("adaptive_period_us", static_cast<double>(o.adaptive_period_us));
+  return o;
+}
+
+FilterSpec curvature_spec() {
+  return {"curvature",
+          "the paper's spherical density + quadric curvature-consistency filter (r 2, Lt 1e4 us, rho 5, 80 %)",
+          [](Params& p, const SensorGeometry& g) -> std::unique_ptr<Filter> {
+            return std::make_unique<CurvatureFilter>(curvature_options_from(p), g);
+          }};
+}
+
+}  // namespace evpipe::denoise

@@ -1,0 +1,95 @@
+#include "evpipe/denoise/selection.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace evpipe::denoise {
+
+double ConsistencyRegion::consistency(double c) const noexcept {
+  if (!valid) return 0.0;
+  const double dist = std::abs(c - centre);
+  if (half_width <= 0.0) return dist == 0.0 ? 0.999 : 0.0;
+  return 0.999 / (1.0 + dist / half_width);
+}
+
+std::size_t keep_count(std::size_t n, double keep_fraction) noexcept {
+  if (n == 0) return 0;
+  const double k = std::ceil(keep_fraction * static_cast<double>(n) - 1e-9);
+  if (!(k >= 1.0)) return 1;
+  return std::min(n, static_cast<std::size_t>(k));
+}
+
+namespace {
+
+// Keeps the k smallest `key` values, ties by index; returns the largest kept key.
+double keep_smallest(std::span<const double> key, std::size_t k, std::vector<std::uint8_t>& keep) {
+  const std::size_t n = key.size();
+  std::vector<std::uint32_t> idx(n);
+  std::iota(idx.begin(), idx.end(), 0U);
+  const auto less = [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b] || (key[a] == key[b] && a < b); };
+  std::nth_element(idx.begin(), idx.begin() + static_cast<std::ptrdiff_t>(k - 1), idx.end(), less);
+  const std::uint32_t cut = idx[k - 1];
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto ii = static_cast<std::uint32_t>(i);
+    keep[i] = (ii == cut || less(ii, cut)) ? 1 : 0;
+  }
+  return key[cut];
+}
+
+double median_of(std::span<const double> values) {
+  std::vector<double> v(values.begin(), values.end());
+  const std::size_t n = v.size();
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  const double upper = *mid;
+  if (n % 2 == 1) return upper;
+  const double lower = *std::max_element(v.begin(), mid);
+  return lower + (upper - lower) / 2.0;  // no overflow for huge values of equal sign
+}
+
+}  // namespace
+
+ConsistencyRegion select_consistent(std::span<const double> values, double keep_fraction, CurvatureRule rule,
+                                    std::vector<std::uint8_t>& keep) {
+  ConsistencyRegion region;
+  const std::size_t n = values.size();
+  keep.assign(n, 0);
+  if (n == 0) return region;
+  const std::size_t k = keep_count(n, keep_fraction);
+  region.valid = true;
+  if (rule == CurvatureRule::shortest) {
+    std::vector<std::uint32_t> idx(n);
+    std::iota(idx.begin(), idx.end(), 0U);
+    std::sort(idx.begin(), idx.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return values[a] < values[b] || (values[a] == values[b] && a < b);
+    });
+    std::size_t best = 0;
+    double best_width = values[idx[k - 1]] - values[idx[0]];
+    for (std::size_t s = 1; s + k <= n; ++s) {
+      const double w = values[idx[s + k - 1]] - values[idx[s]];
+      if (w < best_width) {
+        best_width = w;
+        best = s;
+      }
+    }
+    for (std::size_t j = best; j < best + k; ++j) keep[idx[j]] = 1;
+    region.interval = true;
+    region.lo = values[idx[best]];
+    region.hi = values[idx[best + k - 1]];
+    region.centre = region.lo + (region.hi - region.lo) / 2.0;
+    region.half_width = (region.hi - region.lo) / 2.0;
+    return region;
+  }
+  const double centre = rule == CurvatureRule::median ? median_of(values) : 0.0;
+  std::vector<double> dist(n);
+  for (std::size_t i = 0; i < n; ++i) dist[i] = std::abs(values[i] - centre);
+  const double half = keep_smallest(dist, k, keep);
+  region.centre = centre;
+  region.half_width = half;
+  region.lo = centre - half;
+  region.hi = centre + half;
+  return region;
+}
+
+}  // namespace evpipe::denoise
