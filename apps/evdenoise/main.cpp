@@ -17,14 +17,17 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
 #include "evpipe/core/error.hpp"
 #include "evpipe/denoise/filter.hpp"
+#include "evpipe/denoise/filtered_stream.hpp"
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/io/writer.hpp"
@@ -33,7 +36,6 @@
 #include "evpipe/metrics/roc.hpp"
 #include "json.hpp"
 #include "preview.hpp"
-#include "undecided.hpp"
 
 namespace fs = std::filesystem;
 using namespace evpipe;
@@ -154,17 +156,38 @@ auto as_usage(F&& f) {
   }
 }
 
-class Stopwatch {
+/// The filter, timed: `filter_s` is the time inside its own calls, apart from the bookkeeping, metrics and writing
+/// around them.
+class TimedFilter final : public denoise::Filter {
  public:
+  explicit TimedFilter(std::unique_ptr<denoise::Filter> filter) : filter_(std::move(filter)) {}
+
+  [[nodiscard]] std::string_view name() const noexcept override { return filter_->name(); }
+  void push(EventSpan events, denoise::Decisions& out) override {
+    time([&] { filter_->push(events, out); });
+  }
+  void finish(denoise::Decisions& out) override {
+    time([&] { filter_->finish(out); });
+  }
+  void reset() override {
+    time([&] { filter_->reset(); });
+  }
+  [[nodiscard]] std::size_t pending() const noexcept override { return filter_->pending(); }
+  [[nodiscard]] std::int64_t latency_us() const noexcept override { return filter_->latency_us(); }
+  [[nodiscard]] bool has_score() const noexcept override { return filter_->has_score(); }
+  [[nodiscard]] std::vector<denoise::ReportItem> report() const override { return filter_->report(); }
+
+  [[nodiscard]] double seconds() const { return std::chrono::duration<double>(elapsed_).count(); }
+
+ private:
   template <class F>
   void time(F&& f) {
     const auto t0 = std::chrono::steady_clock::now();
     f();
     elapsed_ += std::chrono::steady_clock::now() - t0;
   }
-  [[nodiscard]] double seconds() const { return std::chrono::duration<double>(elapsed_).count(); }
 
- private:
+  std::unique_ptr<denoise::Filter> filter_;
   std::chrono::steady_clock::duration elapsed_{};
 };
 
@@ -202,8 +225,8 @@ int run(const Options& o) {
   auto reader = io::open_reader(o.in, ropt);
   const SensorGeometry geometry = reader->info().geometry;
   const bool labelled = reader->info().labelled;
-  auto filter = as_usage([&] { return denoise::make_filter_chain(o.filter, settings, geometry); });
-  const bool scored = filter->has_score();
+  TimedFilter filter(as_usage([&] { return denoise::make_filter_chain(o.filter, settings, geometry); }));
+  const bool scored = filter.has_score();
 
   std::optional<evdenoise::Preview> preview;
   if (!o.png.empty()) {
@@ -220,44 +243,24 @@ int run(const Options& o) {
   metrics::EsrAccumulator esr_out(geometry);
   metrics::ClassificationCounter counts;
   metrics::AucAccumulator auc;
-  evdenoise::Undecided undecided;
-  denoise::Decisions decisions;
-  std::vector<Event> kept;
-  std::vector<Label> kept_labels;
-  std::size_t max_pending = 0;
-  Stopwatch filter_time;
-
-  // Applies the decisions made so far to the oldest undecided events and writes the kept ones.
-  auto apply = [&] {
-    const std::size_t n = decisions.size();
-    if (n > undecided.size()) {
-      throw std::logic_error(
-          fmt::format("filter '{}' returned {} decisions for {} undecided events", o.filter, n, undecided.size()));
-    }
-    if (scored && decisions.score.size() != n) {
-      throw std::logic_error(
-          fmt::format("filter '{}' returned {} scores for {} decisions", o.filter, decisions.score.size(), n));
+  // Classification counts and AUC see every decision; the kept events are written (and measured) as they come.
+  denoise::FilteredStream stream(filter, [&](const denoise::DecidedSegment& d) {
+    const auto labels = d.labels();
+    counts.add(d.keep(), labels);
+    if (scored && !labels.empty()) auc.add(d.score(), labels);
+  });
+  std::vector<EventBatch> kept;
+  auto write_kept = [&] {
+    for (const EventBatch& b : kept) {
+      writer->write(b.events, b.labels);
+      esr_out.add(b.span());
+      if (preview) {
+        for (const Event& e : b.events) preview->add_output(e);
+      }
     }
     kept.clear();
-    kept_labels.clear();
-    const std::span<const std::uint8_t> keep(decisions.keep);
-    undecided.take(n, [&](const EventBatch& b, std::size_t first, std::size_t count, std::size_t at) {
-      const auto labels =
-          b.labelled() ? std::span<const Label>(b.labels).subspan(first, count) : std::span<const Label>{};
-      counts.add(keep.subspan(at, count), labels);
-      if (scored && !labels.empty()) auc.add(std::span<const float>(decisions.score).subspan(at, count), labels);
-      for (std::size_t i = 0; i < count; ++i) {
-        if (keep[at + i] == 0) continue;
-        const Event& e = b.events[first + i];
-        kept.push_back(e);
-        if (!labels.empty()) kept_labels.push_back(labels[i]);
-        esr_out.add(e);
-        if (preview) preview->add_output(e);
-      }
-    });
-    if (!kept.empty()) writer->write(kept, kept_labels);
-    decisions.clear();
   };
+  std::size_t max_pending = 0;
 
   std::string error;
   // A file reader may return nullptr before its end (an event held back for the next batch): loop on finished().
@@ -272,25 +275,16 @@ int run(const Options& o) {
       break;
     }
     if (!batch) continue;
-    if (batch->discontinuity_before) {
-      filter_time.time([&] { filter->discontinuity(decisions); });
-      apply();
-    }
     esr_in.add(batch->span());
     if (preview) {
       for (const Event& e : batch->events) preview->add_input(e);
     }
-    undecided.push(batch);
-    filter_time.time([&] { filter->push(batch->span(), decisions); });
-    max_pending = std::max(max_pending, undecided.size() - std::min(undecided.size(), decisions.size()));
-    apply();
+    stream.push(batch, kept);
+    max_pending = std::max(max_pending, stream.pending());
+    write_kept();
   }
-  filter_time.time([&] { filter->finish(decisions); });
-  apply();
-  if (undecided.size() != 0) {
-    throw std::logic_error(
-        fmt::format("filter '{}' left {} events undecided after finish()", o.filter, undecided.size()));
-  }
+  stream.finish(kept);
+  write_kept();
   writer->close();
   if (preview) preview->write(o.png, o.filter);
 
@@ -318,16 +312,15 @@ int run(const Options& o) {
     j.key("events_removed").value(cls.events_removed());
     j.key("kept_fraction").value(cls.kept_fraction());
     j.key("nrr").value(cls.nrr());
-    j.key("latency_us").value(filter->latency_us());
+    j.key("latency_us").value(filter.latency_us());
     j.key("max_pending_events").value(std::uint64_t{max_pending});
-    j.key("filter_s").value(filter_time.seconds());
+    j.key("filter_s").value(filter.seconds());
     j.key("throughput_mev_s")
-        .value(filter_time.seconds() > 0
-                   ? std::optional<double>(static_cast<double>(cls.events_in) / filter_time.seconds() / 1e6)
-                   : std::nullopt);
+        .value(filter.seconds() > 0 ? std::optional<double>(static_cast<double>(cls.events_in) / filter.seconds() / 1e6)
+                                    : std::nullopt);
     j.key("wall_s").value(wall_s);
     j.key("report").begin_object();
-    for (const auto& item : filter->report()) j.key(item.key).value(item.value);
+    for (const auto& item : filter.report()) j.key(item.key).value(item.value);
     j.end_object();
     for (const auto& [key, acc] : {std::pair{"esr_raw", &esr_in}, std::pair{"esr_filtered", &esr_out}}) {
       j.key(key).begin_object();

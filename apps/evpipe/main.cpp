@@ -171,7 +171,7 @@ int run(const Cli& cli) {
       stream.add(batch->span());
       if (denoised) {
         kept.clear();
-        denoised->push(*batch, kept);
+        denoised->push(batch, kept);
         for (auto& b : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(b)));
       } else {
         slicer.accept(batch);

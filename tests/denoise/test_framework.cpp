@@ -1,7 +1,13 @@
 // The filter interface, chains, parameters and the registry (filters themselves are tested in their own files).
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <random>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "evpipe/denoise/chain.hpp"
 #include "evpipe/denoise/filtered_stream.hpp"
@@ -73,28 +79,35 @@ TEST(FilterChain, RejectsEmpty) {
   EXPECT_THROW(FilterChain({}), std::invalid_argument);
 }
 
-EventBatch labelled_batch(std::vector<Event> events, bool discontinuity = false) {
-  EventBatch b;
-  for (std::size_t i = 0; i < events.size(); ++i) {
-    b.labels.push_back(events[i].t_us % 20 == 0 ? Label::signal : Label::noise);
+EventBatchPtr labelled_batch(std::vector<Event> events, bool discontinuity = false) {
+  auto b = std::make_shared<EventBatch>();
+  for (const Event& e : events) {
+    b->labels.push_back(e.t_us % 20 == 0 ? Label::signal : Label::noise);
   }
-  b.events = std::move(events);
-  b.discontinuity_before = discontinuity;
+  b->events = std::move(events);
+  b->discontinuity_before = discontinuity;
   return b;
 }
 
 TEST(FilteredStream, HandsOutKeptEventsInOrderWithTheirLabels) {
   EveryOtherDelayed f;
-  FilteredStream s(f);
+  std::size_t observed = 0;
+  std::size_t observed_labels = 0;
+  FilteredStream s(f, [&](const DecidedSegment& d) {
+    observed += d.count;
+    observed_labels += d.labels().size();
+    EXPECT_TRUE(d.score().empty());  // the filter has no score
+  });
   const auto ev = ramp(9);
   std::vector<EventBatch> out;
   s.push(labelled_batch({ev.begin(), ev.begin() + 4}), out);
   EXPECT_EQ(s.pending(), 1U);  // the last event waits for the next one
-  EXPECT_EQ(s.last_decisions().size(), 3U);
-  EXPECT_EQ(s.last_labels().size(), 3U);
+  EXPECT_EQ(observed, 3U);
+  EXPECT_EQ(observed_labels, 3U);
   s.push(labelled_batch({ev.begin() + 4, ev.end()}), out);
   s.finish(out);
   EXPECT_EQ(s.pending(), 0U);
+  EXPECT_EQ(observed, 9U);
   std::vector<Event> kept;
   for (const auto& b : out) {
     EXPECT_FALSE(b.discontinuity_before);
@@ -111,6 +124,18 @@ TEST(FilteredStream, HandsOutKeptEventsInOrderWithTheirLabels) {
   EXPECT_EQ(s.events_in(), 9U);
   EXPECT_EQ(s.events_decided(), 9U);
   EXPECT_EQ(s.events_kept(), 5U);
+}
+
+TEST(FilteredStream, UnlabelledInputGivesUnlabelledOutput) {
+  EveryOtherDelayed f;
+  FilteredStream s(f, [](const DecidedSegment& d) { EXPECT_TRUE(d.labels().empty()); });
+  std::vector<EventBatch> out;
+  s.push(std::make_shared<const EventBatch>(EventBatch{ramp(5), {}, false}), out);
+  s.finish(out);
+  ASSERT_EQ(out.size(), 2U);
+  EXPECT_EQ(out[0].size() + out[1].size(), 3U);  // inputs 0, 2, 4
+  EXPECT_FALSE(out[0].labelled());
+  EXPECT_FALSE(out[1].labelled());
 }
 
 TEST(FilteredStream, DiscontinuityClosesTheStreamBeforeTheJump) {
@@ -136,6 +161,123 @@ TEST(FilteredStream, DiscontinuityClosesTheStreamBeforeTheJump) {
   ASSERT_EQ(out.size(), 1U);
   EXPECT_FALSE(out[0].discontinuity_before);
   EXPECT_EQ(out[0].events[0], ev[5]);
+}
+
+// Decides a random number of its oldest pending events at each push (all of them at finish): keeps t_us % 3 == 0,
+// scores t_us. Stands for any look-ahead filter, however late it decides.
+class RandomDelay final : public Filter {
+ public:
+  explicit RandomDelay(std::uint64_t seed) : rng_(seed) {}
+  [[nodiscard]] std::string_view name() const noexcept override { return "random-delay"; }
+  void push(EventSpan events, Decisions& out) override {
+    for (const Event& e : events) pending_.push_back(e.t_us);
+    decide(static_cast<std::size_t>(rng_() % (pending_.size() + 1)), out);
+  }
+  void finish(Decisions& out) override { decide(pending_.size(), out); }
+  void reset() override { pending_.clear(); }
+  [[nodiscard]] std::size_t pending() const noexcept override { return pending_.size(); }
+  [[nodiscard]] bool has_score() const noexcept override { return true; }
+
+ private:
+  void decide(std::size_t n, Decisions& out) {
+    for (std::size_t i = 0; i < n; ++i) {
+      out.keep.push_back(pending_.front() % 3 == 0 ? 1 : 0);
+      out.score.push_back(static_cast<float>(pending_.front()));
+      pending_.pop_front();
+    }
+  }
+  std::mt19937_64 rng_;
+  std::deque<std::int64_t> pending_;
+};
+
+// The bookkeeping that matches delayed decisions with their events: random batch sizes (empty ones too) and
+// random delays. Every event is seen once by the observer, in input order, with its own decision, score and label.
+TEST(FilteredStream, DecisionsMeetTheirEventsInInputOrder) {
+  for (const std::uint64_t seed : {3U, 4U, 5U}) {
+    std::mt19937_64 rng(seed);
+    RandomDelay f(seed + 100);
+    std::int64_t expected_t = 0;
+    std::size_t at = 0;  // decisions already observed in the current call
+    FilteredStream s(f, [&](const DecidedSegment& d) {
+      ASSERT_EQ(d.at, at) << "seed " << seed;
+      ASSERT_EQ(d.events().size(), d.count) << "seed " << seed;
+      for (std::size_t i = 0; i < d.count; ++i) {
+        const std::int64_t t = expected_t++;
+        ASSERT_EQ(d.events()[i].t_us, t) << "seed " << seed;
+        ASSERT_EQ(d.batch.events[d.first + i].t_us, t) << "seed " << seed;
+        ASSERT_EQ(d.keep()[i], t % 3 == 0 ? 1 : 0) << "seed " << seed << " t " << t;
+        ASSERT_EQ(d.score()[i], static_cast<float>(t)) << "seed " << seed << " t " << t;
+        ASSERT_EQ(d.labels()[i], t % 20 == 0 ? Label::signal : Label::noise) << "seed " << seed << " t " << t;
+      }
+      at += d.count;
+    });
+    std::vector<EventBatch> out;
+    std::int64_t next_t = 0;
+    for (int round = 0; round < 500; ++round) {
+      std::vector<Event> events;
+      const std::size_t n = rng() % 50;
+      for (std::size_t i = 0; i < n; ++i) events.push_back({next_t++, 1, 1, true});
+      at = 0;
+      s.push(labelled_batch(std::move(events)), out);
+      ASSERT_EQ(s.pending(), f.pending()) << "seed " << seed << " round " << round;
+      ASSERT_EQ(s.events_decided(), static_cast<std::uint64_t>(expected_t)) << "seed " << seed;
+    }
+    at = 0;
+    s.finish(out);
+    EXPECT_EQ(expected_t, next_t) << "seed " << seed;
+    EXPECT_EQ(s.pending(), 0U) << "seed " << seed;
+    // The output: exactly the kept events (t_us % 3 == 0), in order, with their labels.
+    std::int64_t t = 0;
+    for (const auto& b : out) {
+      EXPECT_FALSE(b.discontinuity_before);
+      ASSERT_EQ(b.labels.size(), b.size()) << "seed " << seed;
+      for (std::size_t i = 0; i < b.size(); ++i, t += 3) {
+        ASSERT_EQ(b.events[i].t_us, t) << "seed " << seed;
+        ASSERT_EQ(b.labels[i], t % 20 == 0 ? Label::signal : Label::noise) << "seed " << seed;
+      }
+    }
+    EXPECT_EQ(t, (next_t + 2) / 3 * 3) << "seed " << seed;
+    EXPECT_EQ(s.events_kept(), static_cast<std::uint64_t>(t / 3)) << "seed " << seed;
+  }
+}
+
+// A filter that breaks the Filter contract in one way: the stream refuses it with a message naming it.
+class Faulty final : public Filter {
+ public:
+  enum class Fault { extra_decision, missing_score, never_decides };
+  explicit Faulty(Fault fault) : fault_(fault) {}
+  [[nodiscard]] std::string_view name() const noexcept override { return "faulty"; }
+  void push(EventSpan events, Decisions& out) override {
+    if (fault_ == Fault::never_decides) return;
+    const std::size_t n = events.size() + (fault_ == Fault::extra_decision ? 1 : 0);
+    out.keep.insert(out.keep.end(), n, 1);
+    if (fault_ != Fault::missing_score) out.score.insert(out.score.end(), n, 0.5F);
+  }
+  void finish(Decisions& /*out*/) override {}
+  void reset() override {}
+  [[nodiscard]] bool has_score() const noexcept override { return true; }
+
+ private:
+  Fault fault_;
+};
+
+std::string error_of(Faulty::Fault fault) {
+  Faulty f(fault);
+  FilteredStream s(f);
+  std::vector<EventBatch> out;
+  try {
+    s.push(labelled_batch(ramp(3)), out);
+    s.finish(out);
+  } catch (const std::logic_error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(FilteredStream, RefusesAFilterThatBreaksTheContract) {
+  EXPECT_EQ(error_of(Faulty::Fault::extra_decision), "filter 'faulty' returned 4 decisions for 3 undecided events");
+  EXPECT_EQ(error_of(Faulty::Fault::missing_score), "filter 'faulty' returned 0 scores for 3 decisions");
+  EXPECT_EQ(error_of(Faulty::Fault::never_decides), "filter 'faulty' left 3 events undecided after finish()");
 }
 
 TEST(Params, ParsesAndValidates) {

@@ -8,8 +8,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <memory>
-#include <random>
 #include <regex>
 #include <stdexcept>
 #include <string>
@@ -21,7 +19,6 @@
 #include "evpipe/metrics/esr.hpp"
 #include "evpipe/metrics/roc.hpp"
 #include "evpipe_test_data.hpp"
-#include "undecided.hpp"
 
 namespace fs = std::filesystem;
 using namespace evpipe;
@@ -604,32 +601,4 @@ TEST(Evdenoise, RealEmlbDemoMatchesTheReferenceNumbers) {
   EXPECT_EQ(j.at("esr_filtered").at("chunks").count(), 8U);
   EXPECT_NEAR(j.at("esr_filtered").at("mean").num(), 1.0374, 6e-5);
   EXPECT_EQ(io::read_all(out).events.size(), 261'950U);
-}
-
-// The bookkeeping that matches delayed decisions with their events: random batch sizes and random delays.
-TEST(EvdenoiseUndecided, DecisionsMeetTheirEventsInInputOrder) {
-  const std::uint64_t seed = 3;
-  std::mt19937_64 rng(seed);
-  evdenoise::Undecided undecided;
-  std::int64_t next_t = 0;
-  std::int64_t expected_t = 0;
-  for (int round = 0; round < 500; ++round) {
-    auto batch = std::make_shared<EventBatch>();
-    const std::size_t n = rng() % 50;
-    for (std::size_t i = 0; i < n; ++i) batch->events.push_back({next_t++, 1, 1, true});
-    undecided.push(batch);
-    const std::size_t decide = round == 499 ? undecided.size() : rng() % (undecided.size() + 1);
-    const std::size_t before = undecided.size();
-    std::size_t seen = 0;
-    undecided.take(decide, [&](const EventBatch& b, std::size_t first, std::size_t count, std::size_t at) {
-      ASSERT_EQ(at, seen) << "seed " << seed;
-      for (std::size_t i = 0; i < count; ++i) ASSERT_EQ(b.events[first + i].t_us, expected_t++) << "seed " << seed;
-      seen += count;
-    });
-    ASSERT_EQ(seen, decide);
-    ASSERT_EQ(undecided.size(), before - decide);
-  }
-  EXPECT_EQ(expected_t, next_t);
-  EXPECT_EQ(undecided.size(), 0U);
-  EXPECT_THROW(undecided.take(1, [](const EventBatch&, std::size_t, std::size_t, std::size_t) {}), std::logic_error);
 }

@@ -1,63 +1,95 @@
 #include "evpipe/denoise/filtered_stream.hpp"
 
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <stdexcept>
 #include <utility>
 
 namespace evpipe::denoise {
 
-// Applies the new decisions to the front of the pending queue; the kept events become one output batch.
+FilteredStream::FilteredStream(Filter& filter, Observer on_decided)
+    : filter_(filter), on_decided_(std::move(on_decided)) {}
+
+// Matches the decisions not yet taken with the oldest pending events, run by run within each held batch; the kept
+// events become one output batch.
 void FilteredStream::collect(std::vector<EventBatch>& out) {
-  EventBatch batch;
-  for (; taken_ < decisions_.size(); ++taken_) {
-    const Event e = pending_events_.front();
-    pending_events_.pop_front();
-    const bool labelled = !pending_labels_.empty();
-    const Label label = labelled ? pending_labels_.front() : Label::noise;
-    if (labelled) {
-      pending_labels_.pop_front();
-      decided_labels_.push_back(label);
+  const std::size_t n = decisions_.size() - taken_;
+  if (n > pending_events_) {
+    throw std::logic_error(
+        fmt::format("filter '{}' returned {} decisions for {} undecided events", filter_.name(), n, pending_events_));
+  }
+  // Earlier calls were checked, so the score count of this call starts at taken_.
+  if (filter_.has_score() && decisions_.score.size() != decisions_.size()) {
+    throw std::logic_error(fmt::format("filter '{}' returned {} scores for {} decisions", filter_.name(),
+                                       decisions_.score.size() - taken_, n));
+  }
+  EventBatch kept;
+  while (taken_ < decisions_.size()) {
+    const EventBatch& b = *pending_.front();
+    const std::size_t count = std::min(decisions_.size() - taken_, b.size() - front_decided_);
+    if (on_decided_) {
+      on_decided_(DecidedSegment{b, front_decided_, count, decisions_, taken_});
     }
-    if (decisions_.keep[taken_] != 0) {
-      batch.events.push_back(e);
-      if (labelled) {
-        batch.labels.push_back(label);
-      }
+    for (std::size_t i = 0; i < count; ++i) {
+      if (decisions_.keep[taken_ + i] == 0) continue;
+      kept.events.push_back(b.events[front_decided_ + i]);
+      if (b.labelled()) kept.labels.push_back(b.labels[front_decided_ + i]);
+    }
+    taken_ += count;
+    front_decided_ += count;
+    pending_events_ -= count;
+    if (front_decided_ == b.size()) {
+      pending_.pop_front();
+      front_decided_ = 0;
     }
   }
-  events_decided_ = events_in_ - pending_events_.size();
-  events_kept_ += batch.events.size();
-  if (!batch.events.empty()) {
-    batch.discontinuity_before = std::exchange(flag_next_, false);
-    out.push_back(std::move(batch));
+  if (kept.labels.size() != kept.events.size()) {
+    kept.labels.clear();  // labelled and unlabelled input mixed: a batch is labelled whole or not at all
+  }
+  events_kept_ += kept.size();
+  if (!kept.empty()) {
+    kept.discontinuity_before = std::exchange(flag_next_, false);
+    out.push_back(std::move(kept));
   }
 }
 
-void FilteredStream::push(const EventBatch& in, std::vector<EventBatch>& out) {
+// After the filter's finish(), which must decide everything pending (end of the stream, or a discontinuity).
+void FilteredStream::collect_all(std::vector<EventBatch>& out, const char* where) {
+  collect(out);
+  if (pending_events_ != 0) {
+    throw std::logic_error(
+        fmt::format("filter '{}' left {} events undecided after finish(){}", filter_.name(), pending_events_, where));
+  }
+}
+
+void FilteredStream::push(EventBatchPtr in, std::vector<EventBatch>& out) {
+  if (!in) {
+    throw std::invalid_argument("FilteredStream::push: null batch");
+  }
   decisions_.clear();
-  decided_labels_.clear();
   taken_ = 0;
-  if (in.discontinuity_before && events_in_ > 0) {
+  if (in->discontinuity_before && events_in_ > 0) {
     filter_.discontinuity(decisions_);
-    collect(out);
+    collect_all(out, " at a discontinuity");
     flag_next_ = true;
   }
-  if (in.empty()) {
+  if (in->empty()) {
     return;
   }
-  pending_events_.insert(pending_events_.end(), in.events.begin(), in.events.end());
-  if (in.labelled()) {
-    pending_labels_.insert(pending_labels_.end(), in.labels.begin(), in.labels.end());
-  }
-  events_in_ += in.size();
-  filter_.push(in.span(), decisions_);
+  events_in_ += in->size();
+  pending_events_ += in->size();
+  const EventSpan events = in->span();
+  pending_.push_back(std::move(in));
+  filter_.push(events, decisions_);
   collect(out);
 }
 
 void FilteredStream::finish(std::vector<EventBatch>& out) {
   decisions_.clear();
-  decided_labels_.clear();
   taken_ = 0;
   filter_.finish(decisions_);
-  collect(out);
+  collect_all(out, "");
 }
 
 }  // namespace evpipe::denoise
