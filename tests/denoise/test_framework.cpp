@@ -348,3 +348,27 @@ TEST(Registry, SettingsRouteToTheFilterThatKnowsThem) {
 
 }  // namespace
 }  // namespace evpipe::denoise
+
+namespace evpipe::denoise {
+namespace {
+
+TEST(RandomThinning, KeepsTheRequestedShareWhateverThePushes) {
+  std::vector<Event> ev(200'000);
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    ev[i] = {static_cast<std::int64_t>(i), static_cast<std::uint16_t>(i % 346), static_cast<std::uint16_t>(i % 260),
+             false};
+  }
+  auto f = make_filter("random", {{"keep_fraction", "0.3"}, {"seed", "7"}}, kDavis346);
+  const Decisions whole = run_filter(*f, ev);
+  f->reset();
+  const Decisions chunked = run_filter(*f, ev, 977);
+  EXPECT_EQ(whole.keep, chunked.keep);
+  const double share = static_cast<double>(count_kept(whole)) / static_cast<double>(ev.size());
+  EXPECT_NEAR(share, 0.3, 0.005);  // binomial sd 0.001
+  auto other = make_filter("random", {{"keep_fraction", "0.3"}, {"seed", "8"}}, kDavis346);
+  EXPECT_NE(run_filter(*other, ev).keep, whole.keep);
+  EXPECT_THROW((void)make_filter("random", {{"keep_fraction", "1.5"}}, kDavis346), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace evpipe::denoise

@@ -12,6 +12,7 @@
 #include "evpipe/denoise/dwf.hpp"
 #include "evpipe/denoise/hotpixel.hpp"
 #include "evpipe/denoise/knoise.hpp"
+#include "evpipe/denoise/random_thinning.hpp"
 #include "evpipe/denoise/stcf.hpp"
 #include "evpipe/denoise/ynoise.hpp"
 
@@ -21,12 +22,7 @@ const std::vector<FilterSpec>& filter_specs() {
   // One line per filter; each filter's header declares its spec.
   static const std::vector<FilterSpec> specs = {
       curvature_spec(),  // the paper's filter first
-      baf_spec(),
-      knoise_spec(),
-      ynoise_spec(),
-      stcf_spec(),
-      dwf_spec(),
-      hotpixel_spec(),
+      baf_spec(),       knoise_spec(), ynoise_spec(), stcf_spec(), dwf_spec(), hotpixel_spec(), random_spec(),
   };
   return specs;
 }
