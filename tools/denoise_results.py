@@ -181,6 +181,7 @@ def section_real(ctx: Ctx) -> list[str]:
     results = iter(parallel(ctx, jobs))
     header = "| filter | " + " | ".join(f"{p.parent.name} ({s})" for p, s in present) + " |"
     rows = {f.label: [] for f in FILTERS}
+    kept_share = {}
     raw = []
     for path, _ in present:
         for i, f in enumerate(FILTERS):
@@ -188,11 +189,23 @@ def section_real(ctx: Ctx) -> list[str]:
             if i == 0:
                 raw.append(f"{fmt(get(m, 'esr_raw', 'mean'))} ({get(m, 'esr_raw', 'chunks', default=0)})")
             kept = m["events_kept"] / max(1, m["events_in"])
+            kept_share[(path, f.label)] = kept
             rows[f.label].append(f"{fmt(get(m, 'esr_filtered', 'mean'))} ({get(m, 'esr_filtered', 'chunks', default=0)}), "
                                  f"{100.0 * kept:.1f} %")
+    # Random thinning to curvature's kept share (3 seeds): what ESR does when the same number of events is removed
+    # without regard to structure (fixed 30 000-event chunks then span more time).
+    thinning = []
+    for path, _ in present:
+        share = kept_share[(path, "curvature")]
+        ms = [metrics(ctx, path, FilterRun("random", "random", (f"keep_fraction={share:.6f}", f"seed={s}")))
+              for s in (1, 2, 3)]
+        vals = [get(m, "esr_filtered", "mean") for m in ms]
+        mean = statistics.fmean(vals) if all(v is not None for v in vals) else None
+        thinning.append(f"{fmt(mean)} ({get(ms[0], 'esr_filtered', 'chunks', default=0)}), {100.0 * share:.1f} %")
     lines += [header, "|---|" + "---:|" * len(present), "| raw | " + " | ".join(raw) + " |"]
     for f in FILTERS:
         lines.append(f"| {f.label} | " + " | ".join(rows[f.label]) + " |")
+    lines.append("| *random thinning to curvature's kept share (mean of 3 seeds)* | " + " | ".join(thinning) + " |")
     lines.append("")
     return lines
 

@@ -101,16 +101,24 @@ class PerEventFilter final : public Filter {
 
   [[nodiscard]] std::string_view name() const noexcept override { return name_; }
   void push(EventSpan events, Decisions& out) override {
-    out.keep.reserve(out.keep.size() + events.size());
+    // Written through raw pointers into pre-sized storage: a uint8_t store through vector::push_back may alias
+    // anything, which would make the compiler reload the filter's state after every event.
+    const std::size_t base = out.keep.size();
+    out.keep.resize(base + events.size());
+    std::uint8_t* keep = out.keep.data() + base;
+    float* score = nullptr;
     if constexpr (PerEventScore<Impl>) {
-      out.score.reserve(out.score.size() + events.size());
+      out.score.resize(base + events.size());
+      score = out.score.data() + base;
     }
-    for (const Event& e : events) {
-      out.keep.push_back(impl_.accept(e) ? 1 : 0);
+    Impl& impl = impl_;
+    for (std::size_t i = 0; i < events.size(); ++i) {
+      keep[i] = impl.accept(events[i]) ? 1 : 0;
       if constexpr (PerEventScore<Impl>) {
-        out.score.push_back(static_cast<float>(impl_.last_score()));
+        score[i] = static_cast<float>(impl.last_score());
       }
     }
+    (void)score;
   }
   void finish(Decisions& /*out*/) override {}
   void reset() override { impl_.reset(); }
