@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Quick start, command 2 (and CI): install what is missing, build with -Werror, run every test, then the
 # sanitizer build's tests, a bounded fuzzing run of every reader, and the Python cross-checks of the
-# AEDAT 4.0 writer (skipped with a message when the PyPI packages cannot be installed).
+# AEDAT 4.0 writer and of the dv-processing-compatible denoisers (skipped with a message when the PyPI packages
+# cannot be installed).
 # Environment: EVPIPE_FUZZ_SECONDS (default 20 per reader), EVPIPE_SKIP_ASAN=1, EVPIPE_SKIP_FUZZ=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -41,6 +42,13 @@ fi
 stamp "cross-check: AEDAT 4.0 written by evpipe, read by dv-processing and aedat"
 set +e
 python3 tools/check_aedat4_python.py --build build/ci
+rc=$?
+set -e
+if [ $rc -eq 77 ]; then echo "cross-check skipped (see message above)"; elif [ $rc -ne 0 ]; then exit $rc; fi
+
+stamp "cross-check: baf / knoise decisions vs dv-processing 2.0.4, event by event"
+set +e
+python3 tools/check_denoise_dv.py --build build/ci
 rc=$?
 set -e
 if [ $rc -eq 77 ]; then echo "cross-check skipped (see message above)"; elif [ $rc -ne 0 ]; then exit $rc; fi
