@@ -93,7 +93,7 @@ class Judge {
         sites_(sphere.size()),
         table_(sphere),
         batch_(sphere),
-        rate_(make_exposure_model(sphere, o.mode, o.window_us, g), o) {}
+        rate_(o.adaptive ? make_exposure_model(sphere, o.mode, o.window_us, g) : ExposureModel{}, o) {}
 
   void reset() {
     rate_.reset();
@@ -136,7 +136,7 @@ class Judge {
   }
   [[nodiscard]] std::size_t slots() const noexcept { return rho_.size(); }
 
-  void add(std::size_t slot, std::int64_t t_us, const std::int32_t* counts, const std::int64_t* sums) {
+  void add(std::size_t slot, std::int64_t t_us, const std::int32_t* counts, const double* sums) {
     std::uint64_t mask = 0;
     std::int32_t rho = 0;
     for (int s = 0; s < sites_; ++s) {
@@ -146,7 +146,7 @@ class Judge {
     rho_[slot] = rho;
     if (trace_ != nullptr && trace_->with_sites) {
       std::copy_n(counts, sites_, site_counts_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
-      std::copy_n(sums, sites_, site_sums_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
+      for (int s = 0; s < sites_; ++s) site_sums_[slot * sites_ + s] = static_cast<std::int64_t>(sums[s]);
     }
     if (rho < rate_.threshold(t_us)) {
       status_[slot] = CurvatureStatus::density_fail;
@@ -351,6 +351,12 @@ struct CurvatureFilter::Impl {
   std::vector<std::uint32_t> members;
   std::int32_t counts[kMaxSphereSites] = {};
   std::int64_t sums[kMaxSphereSites] = {};
+  double sums_d[kMaxSphereSites] = {};
+
+  void add(std::size_t slot, std::int64_t t_us) {
+    for (int s = 0; s < sphere.size(); ++s) sums_d[s] = static_cast<double>(sums[s]);
+    judge.add(slot, t_us, counts, sums_d);
+  }
 
   void append(EventSpan events) {
     buf.reserve(buf.size() + events.size());
@@ -395,8 +401,8 @@ struct CurvatureFilter::Impl {
       grid->build(span);
       const std::int64_t lo = stream ? std::numeric_limits<std::int64_t>::min() / 2 : blk_start;
       const std::int64_t hi = stream ? std::numeric_limits<std::int64_t>::max() / 2 : blk_end - 1;
-      auto sink = [&](std::size_t i, const std::int32_t* c, const std::int64_t* s) {
-        judge.add(i - q0, span[i].t_us, c, s);
+      auto sink = [&](std::size_t i, std::int64_t t_us, const std::int32_t* c, const double* s) {
+        judge.add(i - q0, t_us, c, s);
       };
       // Queries arrive grouped by pixel: split them at the adaptive estimator's period borders so that all
       // events of one period are judged before any of the next.
@@ -421,7 +427,7 @@ struct CurvatureFilter::Impl {
         flann->ball(span[i], members);
         accumulate_ball(
             sphere, span, i, members, [](std::size_t) { return false; }, counts, sums);
-        judge.add(i - q0, span[i].t_us, counts, sums);
+        add(i - q0, span[i].t_us);
       }
     }
     judge.finish_block(out);
@@ -478,7 +484,7 @@ struct CurvatureFilter::Impl {
         accumulate_ball(
             sphere, EventSpan(buf), i, members, [i](std::size_t j) { return j > i; }, counts, sums);
       }
-      judge.add(slot, e.t_us, counts, sums);
+      add(slot, e.t_us);
     }
     if (block_open) {
       judge.emit_causal(emitted, judge.slots(), out);
@@ -578,6 +584,7 @@ Decisions curvature_batch(EventSpan all_events, const CurvatureOptions& options,
   std::vector<std::uint32_t> members;
   std::int32_t counts[kMaxSphereSites];
   std::int64_t sums[kMaxSphereSites];
+  double sums_d[kMaxSphereSites];
   out.keep.reserve(events.size());
   out.score.reserve(events.size());
   const std::int64_t w = options.window_us;
@@ -606,7 +613,8 @@ Decisions curvature_batch(EventSpan all_events, const CurvatureOptions& options,
               sphere, events, i, members, [i](std::size_t j) { return j > i; }, counts, sums);
           break;
       }
-      judge.add(slot, events[i].t_us, counts, sums);
+      for (int s = 0; s < sphere.size(); ++s) sums_d[s] = static_cast<double>(sums[s]);
+      judge.add(slot, events[i].t_us, counts, sums_d);
     }
     if (options.mode == CurvatureMode::causal) {
       judge.emit_causal(0, b1 - b0, out);

@@ -1,4 +1,5 @@
 #include <cstring>
+#include <limits>
 
 #include "evpipe/denoise/neighbourhood.hpp"
 
@@ -10,13 +11,13 @@ GridBlockIndex::GridBlockIndex(const Sphere& sphere, const SensorGeometry& geome
       stride_(geometry.width + 2 * sphere.extent_px()),
       sites_(sphere.size()) {
   for (const auto& s : sphere.sites()) {
+    hw32_[half_width_.size()] = static_cast<std::int32_t>(s.half_width_us);
     half_width_.push_back(s.half_width_us);
     offset_.push_back(static_cast<std::ptrdiff_t>(s.dy) * stride_ + s.dx);
   }
   const auto pixels = static_cast<std::size_t>(stride_) * static_cast<std::size_t>(geometry.height + 2 * extent_);
   start_.assign(pixels + 1, 0);
   cursor_.assign(pixels, 0);
-  mark_.assign(pixels, 0);
 }
 
 void GridBlockIndex::build(EventSpan events) {
@@ -31,7 +32,9 @@ void GridBlockIndex::build(EventSpan events) {
   }
   for (std::size_t p = 1; p < start_.size(); ++p) start_[p] += start_[p - 1];
   std::memcpy(cursor_.data(), start_.data(), cursor_.size() * sizeof(std::uint32_t));
-  time_.resize(n);
+  // Padding: the 8-wide window counts read up to 7 entries past a list's end.
+  time_.resize(n + 8);
+  std::fill(time_.begin() + static_cast<std::ptrdiff_t>(n), time_.end(), std::numeric_limits<std::int32_t>::max());
   index_.resize(n);
   prefix_.resize(n + 1);
   for (std::size_t i = 0; i < events.size(); ++i) {

@@ -1,17 +1,12 @@
 #include "evpipe/denoise/quadric.hpp"
 
+#include <algorithm>
 #include <array>
 #include <stdexcept>
 
 namespace evpipe::denoise {
 
 namespace {
-
-// Exponents (p, q) of u^p v^q for the unknowns in solve order [f, d, e, a, b, c]: a, b, c last, so that
-// back substitution stops after three steps.
-constexpr std::array<std::array<int, 2>, 6> kUnknownPq = {{{0, 0}, {1, 0}, {0, 1}, {2, 0}, {0, 2}, {1, 1}}};
-constexpr int kMoments = 15;  // p + q ≤ 4
-constexpr int kRhs = 6;       // p + q ≤ 2
 
 constexpr int moment_index(int p, int q) {
   // Ordered by total degree, then by q: (0,0) (1,0) (0,1) (2,0) (1,1) (0,2) (3,0) ...
@@ -81,8 +76,27 @@ bool SingularMaskTable::cached(std::uint64_t mask) {
   return r;
 }
 
+// Canonical rows of the compact layout: C, (±1,0), (0,±1), (1,1) (1,−1) (−1,1) (−1,−1), (±2,0), (0,±2).
+constexpr std::array<std::array<int, 2>, 13> kCompactSites = {
+    {{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}}};
+
 QuadricBatch::QuadricBatch(const Sphere& sphere)
     : sites_(sphere.size()), pairs_(sphere.pairs()), inv_lt_(1.0 / static_cast<double>(sphere.lt_us())) {
+  compact_ = true;
+  for (int s = 0; s < sites_; ++s) {
+    const auto& site = sphere.sites()[static_cast<std::size_t>(s)];
+    int row = -1;
+    for (int k = 0; k < 13; ++k) {
+      if (kCompactSites[static_cast<std::size_t>(k)][0] == site.dx &&
+          kCompactSites[static_cast<std::size_t>(k)][1] == site.dy)
+        row = k;
+    }
+    if (row < 0) compact_ = false;
+    slot_[s] = row;
+  }
+  if (!compact_) {
+    for (int s = 0; s < sites_; ++s) slot_[s] = s;
+  }
   for (int pr = 0; pr < pairs_; ++pr) {
     const auto& s = sphere.sites()[static_cast<std::size_t>(1 + 2 * pr)];
     for (int deg = 0; deg <= 4; ++deg) {
@@ -98,17 +112,54 @@ QuadricBatch::QuadricBatch(const Sphere& sphere)
   }
 }
 
-void QuadricBatch::solve(int n, double* curvature, bool* ok) noexcept {
-  constexpr int L = kLanes;
-  // Unused lanes repeat lane 0 so that every lane computes something finite.
-  for (int l = n; l < L; ++l) {
-    for (int s = 0; s < sites_; ++s) {
-      n_[s][l] = n_[s][0];
-      sum_[s][l] = sum_[s][0];
-    }
+void QuadricBatch::moments_compact(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept {
+  // The moments of the 13-site layout in closed form (absent sites have zero rows). All terms are small
+  // integers, so the result equals any other summation order exactly.
+  for (int l = 0; l < kLanes; ++l) {
+    const double c = n_[0][l];
+    const double ex = n_[1][l] - n_[2][l], ex2 = n_[1][l] + n_[2][l];
+    const double ey = n_[3][l] - n_[4][l], ey2 = n_[3][l] + n_[4][l];
+    const double sd = (n_[5][l] + n_[6][l]) + (n_[7][l] + n_[8][l]);
+    const double du = (n_[5][l] + n_[6][l]) - (n_[7][l] + n_[8][l]);   // Σ u·n over the diagonals
+    const double dv = (n_[5][l] - n_[6][l]) + (n_[7][l] - n_[8][l]);   // Σ v·n
+    const double duv = (n_[5][l] - n_[6][l]) - (n_[7][l] - n_[8][l]);  // Σ uv·n
+    const double fx = n_[9][l] - n_[10][l], fx2 = n_[9][l] + n_[10][l];
+    const double fy = n_[11][l] - n_[12][l], fy2 = n_[11][l] + n_[12][l];
+    m[0][l] = c + ex2 + ey2 + sd + fx2 + fy2;  // 1
+    m[1][l] = ex + du + 2.0 * fx;              // u
+    m[2][l] = ey + dv + 2.0 * fy;              // v
+    m[3][l] = ex2 + sd + 4.0 * fx2;            // u²
+    m[4][l] = duv;                             // uv
+    m[5][l] = ey2 + sd + 4.0 * fy2;            // v²
+    m[6][l] = ex + du + 8.0 * fx;              // u³
+    m[7][l] = dv;                              // u²v
+    m[8][l] = du;                              // uv²
+    m[9][l] = ey + dv + 8.0 * fy;              // v³
+    m[10][l] = ex2 + sd + 16.0 * fx2;          // u⁴
+    m[11][l] = duv;                            // u³v
+    m[12][l] = sd;                             // u²v²
+    m[13][l] = duv;                            // uv³
+    m[14][l] = ey2 + sd + 16.0 * fy2;          // v⁴
+    const double sc = sum_[0][l];
+    const double sex = sum_[1][l] - sum_[2][l], sex2 = sum_[1][l] + sum_[2][l];
+    const double sey = sum_[3][l] - sum_[4][l], sey2 = sum_[3][l] + sum_[4][l];
+    const double ssd = (sum_[5][l] + sum_[6][l]) + (sum_[7][l] + sum_[8][l]);
+    const double sdu = (sum_[5][l] + sum_[6][l]) - (sum_[7][l] + sum_[8][l]);
+    const double sdv = (sum_[5][l] - sum_[6][l]) + (sum_[7][l] - sum_[8][l]);
+    const double sduv = (sum_[5][l] - sum_[6][l]) - (sum_[7][l] - sum_[8][l]);
+    const double sfx = sum_[9][l] - sum_[10][l], sfx2 = sum_[9][l] + sum_[10][l];
+    const double sfy = sum_[11][l] - sum_[12][l], sfy2 = sum_[11][l] + sum_[12][l];
+    r[0][l] = sc + sex2 + sey2 + ssd + sfx2 + sfy2;
+    r[1][l] = sex + sdu + 2.0 * sfx;
+    r[2][l] = sey + sdv + 2.0 * sfy;
+    r[3][l] = sex2 + ssd + 4.0 * sfx2;
+    r[4][l] = sduv;
+    r[5][l] = sey2 + ssd + 4.0 * sfy2;
   }
-  alignas(64) double m[kMoments][L];
-  alignas(64) double r[kRhs][L];
+}
+
+void QuadricBatch::moments_generic(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept {
+  constexpr int L = kLanes;
   for (int l = 0; l < L; ++l) {
     for (int k = 0; k < kMoments; ++k) m[k][l] = 0.0;
     for (int k = 0; k < kRhs; ++k) r[k][l] = 0.0;
@@ -127,7 +178,6 @@ void QuadricBatch::solve(int n, double* curvature, bool* ok) noexcept {
       so[pr][l] = sum_[1 + 2 * pr][l] - sum_[2 + 2 * pr][l];
     }
   }
-  // All values are integers far below 2⁵³, so these sums are exact whatever the order.
   for (const Term& t : even_terms_) {
     for (int l = 0; l < L; ++l) m[t.moment][l] += t.coef * pe[t.pair][l];
   }
@@ -140,54 +190,82 @@ void QuadricBatch::solve(int n, double* curvature, bool* ok) noexcept {
   for (const Term& t : odd_rhs_terms_) {
     for (int l = 0; l < L; ++l) r[t.moment][l] += t.coef * so[t.pair][l];
   }
+}
 
-  // LDLᵀ of G (G_ij = M[p_i + p_j, q_i + q_j]) and solve G x = r.
-  alignas(64) double lo[6][6][L];  // strictly lower factor
-  alignas(64) double d[6][L];
-  alignas(64) double inv_d[6][L];
-  alignas(64) double y[6][L];
-  bool good[L];
-  for (int l = 0; l < L; ++l) good[l] = true;
-  for (int j = 0; j < 6; ++j) {
-    const int mjj = moment_index(2 * kUnknownPq[j][0], 2 * kUnknownPq[j][1]);
-    for (int l = 0; l < L; ++l) {
-      double v = m[mjj][l];
-      for (int k = 0; k < j; ++k) v -= lo[j][k][l] * lo[j][k][l] * d[k][l];
-      d[j][l] = v;
-      good[l] = good[l] && v > 1e-9 * m[mjj][l];
-      inv_d[j][l] = 1.0 / v;
-    }
-    for (int i = j + 1; i < 6; ++i) {
-      const int mij = moment_index(kUnknownPq[i][0] + kUnknownPq[j][0], kUnknownPq[i][1] + kUnknownPq[j][1]);
-      for (int l = 0; l < L; ++l) {
-        double v = m[mij][l];
-        for (int k = 0; k < j; ++k) v -= lo[i][k][l] * lo[j][k][l] * d[k][l];
-        lo[i][j][l] = v * inv_d[j][l];
-      }
+void QuadricBatch::solve(int n, double* curvature, bool* ok) noexcept {
+  constexpr int L = kLanes;
+  // Unused lanes repeat lane 0 so that every lane computes something finite.
+  const int rows = compact_ ? 13 : sites_;
+  for (int l = n; l < L; ++l) {
+    for (int s = 0; s < rows; ++s) {
+      n_[s][l] = n_[s][0];
+      sum_[s][l] = sum_[s][0];
     }
   }
-  for (int i = 0; i < 6; ++i) {
-    const int ri = moment_index(kUnknownPq[i][0], kUnknownPq[i][1]);
-    for (int l = 0; l < L; ++l) {
-      double v = r[ri][l];
-      for (int k = 0; k < i; ++k) v -= lo[i][k][l] * y[k][l];
-      y[i][l] = v;
-    }
+  alignas(64) double m[kMoments][L];
+  alignas(64) double r[kRhs][L];
+  if (compact_) {
+    moments_compact(m, r);
+  } else {
+    moments_generic(m, r);
   }
+
+  // LDLᵀ of G (G_ij = M[p_i + p_j, q_i + q_j], unknowns [f, d, e, a, b, c]) and G x = r, written out so
+  // that the compiler vectorises across lanes. u_ij = L_ij·d_j. Only a, b, c are back-substituted.
+  alignas(64) double good[L];  // 1 or 0; double so that the lane loop has one element type and vectorises
   for (int l = 0; l < L; ++l) {
-    const double x5 = y[5][l] * inv_d[5][l];                                        // c
-    const double x4 = y[4][l] * inv_d[4][l] - lo[5][4][l] * x5;                     // b
-    const double x3 = y[3][l] * inv_d[3][l] - lo[4][3][l] * x4 - lo[5][3][l] * x5;  // a
-    const double a = x3 * inv_lt_;
-    const double b = x4 * inv_lt_;
-    const double c = x5 * inv_lt_;
-    abc_[0][l] = a;
-    abc_[1][l] = b;
-    abc_[2][l] = c;
-    if (l < n) {
-      curvature[l] = 4.0 * a * b - c * c;
-      ok[l] = good[l];
-    }
+    const double m00 = m[0][l], m10 = m[1][l], m01 = m[2][l], m20 = m[3][l], m11 = m[4][l], m02 = m[5][l];
+    const double m30 = m[6][l], m21 = m[7][l], m12 = m[8][l], m03 = m[9][l];
+    const double m40 = m[10][l], m31 = m[11][l], m22 = m[12][l], m13 = m[13][l], m04 = m[14][l];
+    // G rows (f, d, e, a, b, c) × columns, lower triangle.
+    const double g00 = m00;
+    const double g10 = m10, g11 = m20;
+    const double g20 = m01, g21 = m11, g22 = m02;
+    const double g30 = m20, g31 = m30, g32 = m21, g33 = m40;
+    const double g40 = m02, g41 = m12, g42 = m03, g43 = m22, g44 = m04;
+    const double g50 = m11, g51 = m21, g52 = m12, g53 = m31, g54 = m13, g55 = m22;
+
+    const double d0 = g00, r0 = 1.0 / d0;
+    const double l10 = g10 * r0, l20 = g20 * r0, l30 = g30 * r0, l40 = g40 * r0, l50 = g50 * r0;
+    const double d1 = g11 - l10 * g10, r1 = 1.0 / d1;
+    const double u21 = g21 - l20 * g10, u31 = g31 - l30 * g10, u41 = g41 - l40 * g10, u51 = g51 - l50 * g10;
+    const double l21 = u21 * r1, l31 = u31 * r1, l41 = u41 * r1, l51 = u51 * r1;
+    const double d2 = g22 - l20 * g20 - l21 * u21, r2 = 1.0 / d2;
+    const double u32 = g32 - l30 * g20 - l31 * u21;
+    const double u42 = g42 - l40 * g20 - l41 * u21;
+    const double u52 = g52 - l50 * g20 - l51 * u21;
+    const double l32 = u32 * r2, l42 = u42 * r2, l52 = u52 * r2;
+    const double d3 = g33 - l30 * g30 - l31 * u31 - l32 * u32, r3 = 1.0 / d3;
+    const double u43 = g43 - l40 * g30 - l41 * u31 - l42 * u32;
+    const double u53 = g53 - l50 * g30 - l51 * u31 - l52 * u32;
+    const double l43 = u43 * r3, l53 = u53 * r3;
+    const double d4 = g44 - l40 * g40 - l41 * u41 - l42 * u42 - l43 * u43, r4 = 1.0 / d4;
+    const double u54 = g54 - l50 * g40 - l51 * u41 - l52 * u42 - l53 * u43;
+    const double l54 = u54 * r4;
+    const double d5 = g55 - l50 * g50 - l51 * u51 - l52 * u52 - l53 * u53 - l54 * u54, r5 = 1.0 / d5;
+
+    const double y0 = r[0][l];
+    const double y1 = r[1][l] - l10 * y0;
+    const double y2 = r[2][l] - l20 * y0 - l21 * y1;
+    const double y3 = r[3][l] - l30 * y0 - l31 * y1 - l32 * y2;
+    const double y4 = r[5][l] - l40 * y0 - l41 * y1 - l42 * y2 - l43 * y3;             // b pairs with v² = R02
+    const double y5 = r[4][l] - l50 * y0 - l51 * y1 - l52 * y2 - l53 * y3 - l54 * y4;  // c with uv = R11
+    const double x5 = y5 * r5;                                                         // c
+    const double x4 = y4 * r4 - l54 * x5;                                              // b
+    const double x3 = y3 * r3 - l43 * x4 - l53 * x5;                                   // a
+    abc_[0][l] = x3 * inv_lt_;
+    abc_[1][l] = x4 * inv_lt_;
+    abc_[2][l] = x5 * inv_lt_;
+    // Relative pivot test: never met for full-rank masks, kept so that a degenerate input cannot produce a
+    // curvature from a meaningless factorisation.
+    const double worst =
+        std::min(std::min(std::min(d0 - 1e-9 * g00, d1 - 1e-9 * g11), std::min(d2 - 1e-9 * g22, d3 - 1e-9 * g33)),
+                 std::min(d4 - 1e-9 * g44, d5 - 1e-9 * g55));
+    good[l] = worst > 0.0 ? 1.0 : 0.0;
+  }
+  for (int l = 0; l < n; ++l) {
+    curvature[l] = 4.0 * abc_[0][l] * abc_[1][l] - abc_[2][l] * abc_[2][l];
+    ok[l] = good[l] != 0.0;
   }
 }
 
@@ -201,7 +279,8 @@ QuadricFit fit_quadric(const Sphere& sphere, std::span<const std::int32_t> count
   SingularMaskTable table(sphere);
   if (!table.full_rank(mask)) return fit;
   QuadricBatch batch(sphere);
-  batch.set(0, counts.data(), sums_dt.data());
+  std::vector<double> sums(sums_dt.begin(), sums_dt.end());
+  batch.set(0, counts.data(), sums.data());
   double curv = 0;
   bool ok = false;
   batch.solve(1, &curv, &ok);

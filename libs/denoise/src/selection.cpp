@@ -22,23 +22,27 @@ std::size_t keep_count(std::size_t n, double keep_fraction) noexcept {
 
 namespace {
 
-// Keeps the k smallest `key` values, ties by index; returns the largest kept key.
-double keep_smallest(std::span<const double> key, std::size_t k, std::vector<std::uint8_t>& keep) {
+// Keeps the k smallest keys, ties at the cut by index; returns the largest kept key. Selection on a plain
+// copy of the keys (nth_element), then one pass in index order, so ties go to the earlier index.
+double keep_smallest(std::span<const double> key, std::size_t k, std::vector<std::uint8_t>& keep,
+                     std::vector<double>& scratch) {
   const std::size_t n = key.size();
-  std::vector<std::uint32_t> idx(n);
-  std::iota(idx.begin(), idx.end(), 0U);
-  const auto less = [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b] || (key[a] == key[b] && a < b); };
-  std::nth_element(idx.begin(), idx.begin() + static_cast<std::ptrdiff_t>(k - 1), idx.end(), less);
-  const std::uint32_t cut = idx[k - 1];
+  scratch.assign(key.begin(), key.end());
+  std::nth_element(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(k - 1), scratch.end());
+  const double cut = scratch[k - 1];
+  std::size_t below = 0;
+  for (std::size_t i = 0; i < n; ++i) below += key[i] < cut ? 1 : 0;
+  std::size_t ties = k - below;  // how many keys equal to `cut` are kept, first come first served
   for (std::size_t i = 0; i < n; ++i) {
-    const auto ii = static_cast<std::uint32_t>(i);
-    keep[i] = (ii == cut || less(ii, cut)) ? 1 : 0;
+    const bool tie = key[i] == cut && ties > 0;
+    ties -= tie ? 1 : 0;
+    keep[i] = (key[i] < cut || tie) ? 1 : 0;
   }
-  return key[cut];
+  return cut;
 }
 
-double median_of(std::span<const double> values) {
-  std::vector<double> v(values.begin(), values.end());
+double median_of(std::span<const double> values, std::vector<double>& v) {
+  v.assign(values.begin(), values.end());
   const std::size_t n = v.size();
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(n / 2);
   std::nth_element(v.begin(), mid, v.end());
@@ -81,10 +85,12 @@ ConsistencyRegion select_consistent(std::span<const double> values, double keep_
     region.half_width = (region.hi - region.lo) / 2.0;
     return region;
   }
-  const double centre = rule == CurvatureRule::median ? median_of(values) : 0.0;
-  std::vector<double> dist(n);
+  thread_local std::vector<double> scratch;
+  thread_local std::vector<double> dist;
+  const double centre = rule == CurvatureRule::median ? median_of(values, scratch) : 0.0;
+  dist.resize(n);
   for (std::size_t i = 0; i < n; ++i) dist[i] = std::abs(values[i] - centre);
-  const double half = keep_smallest(dist, k, keep);
+  const double half = keep_smallest(dist, k, keep, scratch);
   region.centre = centre;
   region.half_width = half;
   region.lo = centre - half;

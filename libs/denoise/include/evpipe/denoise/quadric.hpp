@@ -51,7 +51,7 @@ class SingularMaskTable {
 };
 
 /// Fits quadrics for up to kLanes events at once (structure of arrays, so the compiler vectorises across
-/// events). Fill counts/sums of lanes [0, n), then solve(n).
+/// events). Fill lanes [0, n) with set(), then solve(n).
 class QuadricBatch {
  public:
   static constexpr int kLanes = 8;
@@ -59,11 +59,11 @@ class QuadricBatch {
   explicit QuadricBatch(const Sphere& sphere);
 
   /// Per-site inputs of lane `lane`: n_s (events of the ball at site s, the event itself included at the
-  /// centre) and S_s (sum of Δt in µs over them).
-  void set(int lane, const std::int32_t* counts, const std::int64_t* sums_dt) noexcept {
+  /// centre) and S_s (sum of Δt in µs over them; an integer, exact in double).
+  void set(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
     for (int s = 0; s < sites_; ++s) {
-      n_[s][lane] = static_cast<double>(counts[s]);
-      sum_[s][lane] = static_cast<double>(sums_dt[s]);
+      n_[slot_[s]][lane] = static_cast<double>(counts[s]);
+      sum_[slot_[s]][lane] = sums_dt[s];
     }
   }
   /// Solves lanes [0, n) (they must have full-rank masks). curvature[l] = 4ab − c² in (w = Δt/Lt) units;
@@ -74,16 +74,23 @@ class QuadricBatch {
   [[nodiscard]] double coefficient(int which, int lane) const noexcept { return abc_[which][lane]; }
 
  private:
+  static constexpr int kMoments = 15;  // M_pq = Σ n u^p v^q, p + q ≤ 4
+  static constexpr int kRhs = 6;       // R_pq = Σ S u^p v^q, p + q ≤ 2
   struct Term {
     int moment;
     int pair;
     double coef;
   };
+  void moments_compact(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept;
+  void moments_generic(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept;
+
   int sites_;
   int pairs_;
+  bool compact_;  // every site within the 13 sites of |u|, |v| ≤ 2, u² + v² ≤ 4 (radius < √5)
   double inv_lt_;
-  std::vector<Term> even_terms_, odd_terms_;          // moments M_pq = Σ n u^p v^q, p + q ≤ 4
-  std::vector<Term> even_rhs_terms_, odd_rhs_terms_;  // R_pq = Σ S u^p v^q, p + q ≤ 2
+  int slot_[kMaxSphereSites] = {};            // site → row of n_/sum_ (canonical order when compact)
+  std::vector<Term> even_terms_, odd_terms_;  // generic path
+  std::vector<Term> even_rhs_terms_, odd_rhs_terms_;
   alignas(64) double n_[kMaxSphereSites][kLanes] = {};
   alignas(64) double sum_[kMaxSphereSites][kLanes] = {};
   alignas(64) double abc_[3][kLanes] = {};

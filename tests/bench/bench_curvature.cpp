@@ -1,0 +1,111 @@
+// Throughput of the paper's curvature filter (libs/denoise): Mev/s per backend (grid / flann), mode
+// (frames / stream / causal) and curvature stage (on / off), one thread, pushes of 8192 events (a reader's
+// batch), decisions included, file I/O excluded.
+//   build-rel/tests/bench/bench_curvature [--benchmark_filter=stream] [--benchmark_format=json]
+// Data: the E-MLB demo recording (EVPIPE_BENCH_DEMO=path, default ../shared/data/real/emlb-demo-01/
+// demo-01.aedat4; skipped when absent) and a synthetic 10 Mev/s stream: 12 rotating bars (exact edge times,
+// tests/support/rotating_bars.hpp) plus 5 Hz/pixel background activity from libs/sim. Goals (issue 4):
+// grid ≥ 20× flann, stream with curvature ≥ 12 Mev/s on one core.
+
+#include <benchmark/benchmark.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "evpipe/denoise/curvature.hpp"
+#include "evpipe/io/reader.hpp"
+#include "evpipe/sim/noise.hpp"
+#include "evpipe/sim/recording.hpp"
+#include "rotating_bars.hpp"
+
+namespace {
+
+using namespace evpipe;
+using namespace evpipe::denoise;
+
+const std::vector<Event>& demo_events() {
+  static const std::vector<Event> ev = [] {
+    const char* env = std::getenv("EVPIPE_BENCH_DEMO");
+    const std::string path =
+        env != nullptr ? env : std::string(EVPIPE_SHARED_DATA_DIR) + "/emlb-demo-01/demo-01.aedat4";
+    if (!std::filesystem::exists(path)) return std::vector<Event>{};
+    return io::read_all(path).events;
+  }();
+  return ev;
+}
+
+/// `seconds` of 12 rotating bars at ≈ 9.5 Mev/s plus 5 Hz/px noise (≈ 0.45 Mev/s).
+std::vector<Event> synthetic(double omega_rad_s, std::int64_t span_us) {
+  const auto signal = testing::rotating_bar_events(testing::bar_grid(omega_rad_s), kDavis346, 0, span_us);
+  std::mt19937_64 rng(7);
+  sim::NoiseOptions no;
+  no.rate_hz_per_pixel = 5.0;
+  const auto noise = sim::background_activity(kDavis346, 0, span_us, no, rng);
+  return sim::merge_labelled(signal, noise).events;
+}
+
+const std::vector<Event>& synth10_events() {
+  static const std::vector<Event> ev = synthetic(230.0, 300'000);
+  return ev;
+}
+
+void BM_Curvature(benchmark::State& state, const std::vector<Event>& (*data)(), NeighbourhoodBackend backend,
+                  CurvatureMode mode, bool curvature) {
+  const std::vector<Event>& ev = data();
+  if (ev.empty()) {
+    state.SkipWithError("recording not available (set EVPIPE_BENCH_DEMO)");
+    return;
+  }
+  CurvatureOptions o;
+  o.backend = backend;
+  o.mode = mode;
+  o.curvature = curvature;
+  std::size_t kept = 0;
+  Decisions d;
+  d.keep.reserve(ev.size());
+  d.score.reserve(ev.size());
+  for (auto _ : state) {
+    CurvatureFilter f(o, kDavis346);
+    d.clear();
+    constexpr std::size_t kPush = 8192;
+    for (std::size_t i = 0; i < ev.size(); i += kPush) {
+      f.push(EventSpan(ev).subspan(i, std::min(kPush, ev.size() - i)), d);
+    }
+    f.finish(d);
+    kept = count_kept(d);
+    benchmark::DoNotOptimize(d.keep.data());
+  }
+  const double duration_s = static_cast<double>(ev.back().t_us - ev.front().t_us) * 1e-6;
+  state.counters["Mev/s"] = benchmark::Counter(
+      static_cast<double>(ev.size()) * 1e-6 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["input_Mev/s"] = static_cast<double>(ev.size()) * 1e-6 / duration_s;
+  state.counters["kept_%"] = 100.0 * static_cast<double>(kept) / static_cast<double>(ev.size());
+}
+
+void register_all() {
+  struct Data {
+    const char* name;
+    const std::vector<Event>& (*get)();
+  };
+  for (const Data data : {Data{"demo", demo_events}, Data{"synth10", synth10_events}}) {
+    for (const auto backend : {NeighbourhoodBackend::grid, NeighbourhoodBackend::flann}) {
+      for (const auto mode : {CurvatureMode::stream, CurvatureMode::frames, CurvatureMode::causal}) {
+        for (const bool curvature : {true, false}) {
+          const std::string name = std::string("curvature/") + data.name + "/" +
+                                   (backend == NeighbourhoodBackend::grid ? "grid" : "flann") + "/" +
+                                   std::string(to_string(mode)) + (curvature ? "/curv" : "/density");
+          auto* b = benchmark::RegisterBenchmark(name.c_str(), BM_Curvature, data.get, backend, mode, curvature);
+          b->Unit(benchmark::kMillisecond);
+          if (backend == NeighbourhoodBackend::flann) b->Iterations(1);
+        }
+      }
+    }
+  }
+}
+
+const int registered = (register_all(), 0);
+
+}  // namespace
