@@ -148,54 +148,6 @@ void QuadricBatch::set(int lane, const std::int32_t* counts, const double* sums_
   }
 }
 
-template <std::array<int, 13> K>
-void QuadricBatch::set_compact(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
-  // The moments of the 13-site layout in closed form, counts in integers (absent sites read the zero
-  // entry). Every value is an integer far below 2⁵³: exact, whatever the order of summation.
-  constexpr std::array<int, 13> k = K;
-  const std::int32_t c = counts[k[0]];
-  const std::int32_t ex = counts[k[1]] - counts[k[2]], ex2 = counts[k[1]] + counts[k[2]];
-  const std::int32_t ey = counts[k[3]] - counts[k[4]], ey2 = counts[k[3]] + counts[k[4]];
-  const std::int32_t d1 = counts[k[5]], d2 = counts[k[6]], d3 = counts[k[7]], d4 = counts[k[8]];  // ++ +− −+ −−
-  const std::int32_t sd = (d1 + d2) + (d3 + d4);
-  const std::int32_t du = (d1 + d2) - (d3 + d4);   // Σ u·n over the diagonals
-  const std::int32_t dv = (d1 - d2) + (d3 - d4);   // Σ v·n
-  const std::int32_t duv = (d1 - d2) - (d3 - d4);  // Σ uv·n
-  const std::int32_t fx = counts[k[9]] - counts[k[10]], fx2 = counts[k[9]] + counts[k[10]];
-  const std::int32_t fy = counts[k[11]] - counts[k[12]], fy2 = counts[k[11]] + counts[k[12]];
-  m_[0][lane] = c + ex2 + ey2 + sd + fx2 + fy2;  // 1
-  m_[1][lane] = ex + du + 2 * fx;                // u
-  m_[2][lane] = ey + dv + 2 * fy;                // v
-  m_[3][lane] = ex2 + sd + 4 * fx2;              // u²
-  m_[4][lane] = duv;                             // uv
-  m_[5][lane] = ey2 + sd + 4 * fy2;              // v²
-  m_[6][lane] = ex + du + 8 * fx;                // u³
-  m_[7][lane] = dv;                              // u²v
-  m_[8][lane] = du;                              // uv²
-  m_[9][lane] = ey + dv + 8 * fy;                // v³
-  m_[10][lane] = ex2 + sd + 16 * fx2;            // u⁴
-  m_[11][lane] = duv;                            // u³v
-  m_[12][lane] = sd;                             // u²v²
-  m_[13][lane] = duv;                            // uv³
-  m_[14][lane] = ey2 + sd + 16 * fy2;            // v⁴
-  const double* s = sums_dt;
-  const double sex = s[k[1]] - s[k[2]], sex2 = s[k[1]] + s[k[2]];
-  const double sey = s[k[3]] - s[k[4]], sey2 = s[k[3]] + s[k[4]];
-  const double e1 = s[k[5]], e2 = s[k[6]], e3 = s[k[7]], e4 = s[k[8]];
-  const double ssd = (e1 + e2) + (e3 + e4);
-  const double sdu = (e1 + e2) - (e3 + e4);
-  const double sdv = (e1 - e2) + (e3 - e4);
-  const double sduv = (e1 - e2) - (e3 - e4);
-  const double sfx = s[k[9]] - s[k[10]], sfx2 = s[k[9]] + s[k[10]];
-  const double sfy = s[k[11]] - s[k[12]], sfy2 = s[k[11]] + s[k[12]];
-  r_[0][lane] = s[k[0]] + sex2 + sey2 + ssd + sfx2 + sfy2;
-  r_[1][lane] = sex + sdu + 2.0 * sfx;
-  r_[2][lane] = sey + sdv + 2.0 * sfy;
-  r_[3][lane] = sex2 + ssd + 4.0 * sfx2;
-  r_[4][lane] = sduv;
-  r_[5][lane] = sey2 + ssd + 4.0 * sfy2;
-}
-
 void QuadricBatch::set_generic(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
   double m[kMoments] = {};
   double r[kRhs] = {};
@@ -215,6 +167,57 @@ void QuadricBatch::solve(int n, double* curvature, bool* ok) noexcept {
   for (int l = n; l < L; ++l) {
     for (int i = 0; i < kMoments; ++i) m_[i][l] = m_[i][0];
     for (int i = 0; i < kRhs; ++i) r_[i][l] = r_[i][0];
+    for (int i = 0; i < 13; ++i) {
+      nc_[i][l] = nc_[i][0];
+      sc_[i][l] = sc_[i][0];
+    }
+  }
+  if (compact_) {
+    // The moments of the 13-site layout in closed form (canonical rows: C, (±1,0), (0,±1), (1,1) (1,−1)
+    // (−1,1) (−1,−1), (±2,0), (0,±2); absent sites hold zeros). Counts are summed in integers; every value
+    // is an integer far below 2⁵³, so the result is exact whatever the order of summation.
+    for (int l = 0; l < L; ++l) {
+      const std::int32_t c = nc_[0][l];
+      const std::int32_t ex = nc_[1][l] - nc_[2][l], ex2 = nc_[1][l] + nc_[2][l];
+      const std::int32_t ey = nc_[3][l] - nc_[4][l], ey2 = nc_[3][l] + nc_[4][l];
+      const std::int32_t d1 = nc_[5][l], d2 = nc_[6][l], d3 = nc_[7][l], d4 = nc_[8][l];  // ++ +− −+ −−
+      const std::int32_t sd = (d1 + d2) + (d3 + d4);
+      const std::int32_t du = (d1 + d2) - (d3 + d4);   // Σ u·n over the diagonals
+      const std::int32_t dv = (d1 - d2) + (d3 - d4);   // Σ v·n
+      const std::int32_t duv = (d1 - d2) - (d3 - d4);  // Σ uv·n
+      const std::int32_t fx = nc_[9][l] - nc_[10][l], fx2 = nc_[9][l] + nc_[10][l];
+      const std::int32_t fy = nc_[11][l] - nc_[12][l], fy2 = nc_[11][l] + nc_[12][l];
+      m_[0][l] = c + ex2 + ey2 + sd + fx2 + fy2;  // 1
+      m_[1][l] = ex + du + 2 * fx;                // u
+      m_[2][l] = ey + dv + 2 * fy;                // v
+      m_[3][l] = ex2 + sd + 4 * fx2;              // u²
+      m_[4][l] = duv;                             // uv
+      m_[5][l] = ey2 + sd + 4 * fy2;              // v²
+      m_[6][l] = ex + du + 8 * fx;                // u³
+      m_[7][l] = dv;                              // u²v
+      m_[8][l] = du;                              // uv²
+      m_[9][l] = ey + dv + 8 * fy;                // v³
+      m_[10][l] = ex2 + sd + 16 * fx2;            // u⁴
+      m_[11][l] = duv;                            // u³v
+      m_[12][l] = sd;                             // u²v²
+      m_[13][l] = duv;                            // uv³
+      m_[14][l] = ey2 + sd + 16 * fy2;            // v⁴
+      const double sex = sc_[1][l] - sc_[2][l], sex2 = sc_[1][l] + sc_[2][l];
+      const double sey = sc_[3][l] - sc_[4][l], sey2 = sc_[3][l] + sc_[4][l];
+      const double e1 = sc_[5][l], e2 = sc_[6][l], e3 = sc_[7][l], e4 = sc_[8][l];
+      const double ssd = (e1 + e2) + (e3 + e4);
+      const double sdu = (e1 + e2) - (e3 + e4);
+      const double sdv = (e1 - e2) + (e3 - e4);
+      const double sduv = (e1 - e2) - (e3 - e4);
+      const double sfx = sc_[9][l] - sc_[10][l], sfx2 = sc_[9][l] + sc_[10][l];
+      const double sfy = sc_[11][l] - sc_[12][l], sfy2 = sc_[11][l] + sc_[12][l];
+      r_[0][l] = sc_[0][l] + sex2 + sey2 + ssd + sfx2 + sfy2;
+      r_[1][l] = sex + sdu + 2.0 * sfx;
+      r_[2][l] = sey + sdv + 2.0 * sfy;
+      r_[3][l] = sex2 + ssd + 4.0 * sfx2;
+      r_[4][l] = sduv;
+      r_[5][l] = sey2 + ssd + 4.0 * sfy2;
+    }
   }
   // LDLᵀ of G (G_ij = M[p_i + p_j, q_i + q_j], unknowns [f, d, e, a, b, c]) and G x = r, written out so
   // that the compiler vectorises across lanes. u_ij = L_ij·d_j. Only a, b, c are back-substituted.

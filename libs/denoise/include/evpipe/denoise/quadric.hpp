@@ -80,7 +80,12 @@ class QuadricBatch {
     double coef;
   };
   template <std::array<int, 13> K>
-  void set_compact(int lane, const std::int32_t* counts, const double* sums_dt) noexcept;
+  void set_compact(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
+    for (std::size_t k = 0; k < 13; ++k) {
+      nc_[k][lane] = counts[K[k]];
+      sc_[k][lane] = sums_dt[K[k]];
+    }
+  }
   void set_generic(int lane, const std::int32_t* counts, const double* sums_dt) noexcept;
 
   int sites_;
@@ -91,8 +96,10 @@ class QuadricBatch {
   int canonical_[13] = {};                    // compact: the site of each canonical position, or sites_ (a zero entry)
   std::vector<Term> even_terms_, odd_terms_;  // generic path
   std::vector<Term> even_rhs_terms_, odd_rhs_terms_;
-  alignas(64) double m_[kMoments][kLanes] = {};
+  alignas(64) double m_[kMoments][kLanes] = {};  // generic layouts: moments per lane, formed in set()
   alignas(64) double r_[kRhs][kLanes] = {};
+  alignas(64) std::int32_t nc_[13][kLanes] = {};  // compact layouts: per-site inputs in canonical order,
+  alignas(64) double sc_[13][kLanes] = {};        // reduced to moments across lanes in solve()
   alignas(64) double abc_[3][kLanes] = {};
 };
 
