@@ -686,9 +686,10 @@ TEST(Curvature, ModesOnALabelledSceneWithNoise) {
     o.adaptive_period_us = 250'000;
     const Outcome r = run(o, rec.events, time_cuts(rec.events, 10'000));
     q[c.name] = quality(r.d, rec.labels);
-    std::printf("[ info ] labelled bars + 5 Hz/px, %-22s signal kept %5.1f %%, noise kept %5.2f %%, F1 %.3f%s\n", c.name,
-                100 * q[c.name].signal_kept, 100 * q[c.name].noise_kept, q[c.name].f1,
-                c.adaptive ? (" (threshold " + std::to_string(static_cast<int>(report_value(r.report, "density_threshold_used"))) +
+    std::printf("[ info ] labelled bars + 5 Hz/px, %-22s signal kept %5.1f %%, noise kept %5.2f %%, F1 %.3f%s\n",
+                c.name, 100 * q[c.name].signal_kept, 100 * q[c.name].noise_kept, q[c.name].f1,
+                c.adaptive ? (" (threshold " +
+                              std::to_string(static_cast<int>(report_value(r.report, "density_threshold_used"))) +
                               ", rate " + std::to_string(report_value(r.report, "noise_rate_hz")) + " Hz/px)")
                                  .c_str()
                            : "");
