@@ -136,13 +136,8 @@ class Judge {
   }
   [[nodiscard]] std::size_t slots() const noexcept { return rho_.size(); }
 
-  void add(std::size_t slot, std::int64_t t_us, const std::int32_t* counts, const double* sums) {
-    std::uint64_t mask = 0;
-    std::int32_t rho = 0;
-    for (int s = 0; s < sites_; ++s) {
-      rho += counts[s];
-      mask |= static_cast<std::uint64_t>(counts[s] > 0) << s;
-    }
+  void add(std::size_t slot, std::int64_t t_us, std::int32_t rho, std::uint64_t mask, const std::int32_t* counts,
+           const double* sums) {
     rho_[slot] = rho;
     if (trace_ != nullptr && trace_->with_sites) {
       std::copy_n(counts, sites_, site_counts_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
@@ -349,28 +344,34 @@ struct CurvatureFilter::Impl {
   std::int64_t causal_block = 0;
   std::size_t emitted = 0;  // causal: slots of the open block already decided
   std::vector<std::uint32_t> members;
-  std::int32_t counts[kMaxSphereSites] = {};
-  std::int64_t sums[kMaxSphereSites] = {};
-  double sums_d[kMaxSphereSites] = {};
+  std::int32_t counts[kMaxSphereSites + 1] = {};  // + the zero entry QuadricBatch::set expects
+  std::int64_t sums[kMaxSphereSites + 1] = {};
+  double sums_d[kMaxSphereSites + 1] = {};
 
   void add(std::size_t slot, std::int64_t t_us) {
     for (int s = 0; s < sphere.size(); ++s) sums_d[s] = static_cast<double>(sums[s]);
-    judge.add(slot, t_us, counts, sums_d);
+    std::int32_t rho = 0;
+    std::uint64_t mask = 0;
+    density_and_mask(counts, sphere.size(), rho, mask);
+    judge.add(slot, t_us, rho, mask, counts, sums_d);
   }
 
   void append(EventSpan events) {
-    buf.reserve(buf.size() + events.size());
-    for (Event e : events) {
-      if (!have_last) {
-        have_last = true;
-        last_t = e.t_us;
-        judge.start(e.t_us);
-      }
-      // Out-of-order input (contract violation) is treated as arriving at the latest time seen.
-      e.t_us = std::max(e.t_us, last_t);
-      last_t = e.t_us;
-      buf.push_back(e);
+    if (events.empty()) return;
+    if (!have_last) {
+      have_last = true;
+      last_t = events.front().t_us;
+      judge.start(last_t);
     }
+    const std::size_t from = buf.size();
+    buf.insert(buf.end(), events.begin(), events.end());  // geometric growth
+    // Out-of-order input (contract violation) is treated as arriving at the latest time seen.
+    std::int64_t t = last_t;
+    for (std::size_t i = from; i < buf.size(); ++i) {
+      t = std::max(t, buf[i].t_us);
+      buf[i].t_us = t;
+    }
+    last_t = t;
   }
 
   void process_block(Decisions& out) {
@@ -401,9 +402,8 @@ struct CurvatureFilter::Impl {
       grid->build(span);
       const std::int64_t lo = stream ? std::numeric_limits<std::int64_t>::min() / 2 : blk_start;
       const std::int64_t hi = stream ? std::numeric_limits<std::int64_t>::max() / 2 : blk_end - 1;
-      auto sink = [&](std::size_t i, std::int64_t t_us, const std::int32_t* c, const double* s) {
-        judge.add(i - q0, t_us, c, s);
-      };
+      auto sink = [&](std::size_t i, std::int64_t t_us, std::int32_t rho, std::uint64_t mask, const std::int32_t* c,
+                      const double* s) { judge.add(i - q0, t_us, rho, mask, c, s); };
       // Queries arrive grouped by pixel: split them at the adaptive estimator's period borders so that all
       // events of one period are judged before any of the next.
       std::size_t a = q0;
@@ -582,9 +582,9 @@ Decisions curvature_batch(EventSpan all_events, const CurvatureOptions& options,
   FlannBallIndex index(sphere);
   index.build(events, geometry);
   std::vector<std::uint32_t> members;
-  std::int32_t counts[kMaxSphereSites];
-  std::int64_t sums[kMaxSphereSites];
-  double sums_d[kMaxSphereSites];
+  std::int32_t counts[kMaxSphereSites + 1] = {};  // + the zero entry QuadricBatch::set expects
+  std::int64_t sums[kMaxSphereSites + 1] = {};
+  double sums_d[kMaxSphereSites + 1] = {};
   out.keep.reserve(events.size());
   out.score.reserve(events.size());
   const std::int64_t w = options.window_us;
@@ -614,7 +614,10 @@ Decisions curvature_batch(EventSpan all_events, const CurvatureOptions& options,
           break;
       }
       for (int s = 0; s < sphere.size(); ++s) sums_d[s] = static_cast<double>(sums[s]);
-      judge.add(slot, events[i].t_us, counts, sums_d);
+      std::int32_t rho = 0;
+      std::uint64_t mask = 0;
+      density_and_mask(counts, sphere.size(), rho, mask);
+      judge.add(slot, events[i].t_us, rho, mask, counts, sums_d);
     }
     if (options.mode == CurvatureMode::causal) {
       judge.emit_causal(0, b1 - b0, out);

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cstring>
 #include <limits>
 
@@ -9,34 +10,55 @@ GridBlockIndex::GridBlockIndex(const Sphere& sphere, const SensorGeometry& geome
     : geometry_(geometry),
       extent_(sphere.extent_px()),
       stride_(geometry.width + 2 * sphere.extent_px()),
-      sites_(sphere.size()) {
-  for (const auto& s : sphere.sites()) {
-    hw32_[half_width_.size()] = static_cast<std::int32_t>(s.half_width_us);
-    half_width_.push_back(s.half_width_us);
-    offset_.push_back(static_cast<std::ptrdiff_t>(s.dy) * stride_ + s.dx);
+      sites_(sphere.size()),
+      row_((sphere.size() + 1 + 15) / 16 * 16) {  // at least one zero pad (QuadricBatch::set)
+  for (int s = 0; s < sites_; ++s) {
+    const auto& site = sphere.sites()[static_cast<std::size_t>(s)];
+    hw32_[s] = static_cast<std::int32_t>(site.half_width_us);
+    offset_[s] = static_cast<std::ptrdiff_t>(site.dy) * stride_ + site.dx;
+    (site.half_width_us > 0 ? window_sites_ : tie_sites_).push_back(s);
   }
   const auto pixels = static_cast<std::size_t>(stride_) * static_cast<std::size_t>(geometry.height + 2 * extent_);
-  start_.assign(pixels + 1, 0);
+  begin_.assign(pixels, 0);
+  count_.assign(pixels, 0);
   cursor_.assign(pixels, 0);
+  touched_bits_.assign((pixels + 63) / 64, 0);
 }
 
 void GridBlockIndex::build(EventSpan events) {
   events_ = events;
   base_us_ = events.empty() ? 0 : events.front().t_us;
-  std::fill(start_.begin(), start_.end(), 0U);
+  for (const std::uint32_t p : touched_) {
+    begin_[p] = 0;
+    count_[p] = 0;
+  }
+  touched_.clear();
   std::size_t n = 0;
   for (const Event& e : events) {
     if (!geometry_.contains(e.x, e.y)) continue;
-    ++start_[pixel_of(e) + 1];
+    const std::size_t p = pixel_of(e);
+    touched_bits_[p >> 6] |= std::uint64_t{1} << (p & 63);
+    ++count_[p];
     ++n;
   }
-  for (std::size_t p = 1; p < start_.size(); ++p) start_[p] += start_[p - 1];
-  std::memcpy(cursor_.data(), start_.data(), cursor_.size() * sizeof(std::uint32_t));
-  // Padding: the 8-wide window counts read up to 7 entries past a list's end.
-  time_.resize(n + 8);
-  std::fill(time_.begin() + static_cast<std::ptrdiff_t>(n), time_.end(), std::numeric_limits<std::int32_t>::max());
-  index_.resize(n);
-  prefix_.resize(n + 1);
+  // Touched pixels in raster order, each list followed by its sentinel; entry 0 is the shared sentinel.
+  std::uint32_t pos = 1;
+  for (std::size_t w = 0; w < touched_bits_.size(); ++w) {
+    std::uint64_t bits = touched_bits_[w];
+    touched_bits_[w] = 0;
+    while (bits != 0) {
+      const auto p = static_cast<std::uint32_t>((w << 6) + static_cast<std::size_t>(__builtin_ctzll(bits)));
+      bits &= bits - 1;
+      touched_.push_back(p);
+      begin_[p] = pos;
+      cursor_[p] = pos;
+      pos += count_[p] + 1;
+    }
+  }
+  const std::size_t total = pos;
+  time_.resize(total + 8);  // an 8-wide count may read up to 7 entries past the last sentinel
+  index_.resize(total);
+  prefix_.resize(total + 1);
   for (std::size_t i = 0; i < events.size(); ++i) {
     const Event& e = events[i];
     if (!geometry_.contains(e.x, e.y)) continue;
@@ -44,8 +66,61 @@ void GridBlockIndex::build(EventSpan events) {
     time_[k] = static_cast<std::int32_t>(e.t_us - base_us_);
     index_[k] = static_cast<std::uint32_t>(i);
   }
+  constexpr std::int32_t kSentinel = std::numeric_limits<std::int32_t>::max();
+  time_[0] = kSentinel;
+  index_[0] = std::numeric_limits<std::uint32_t>::max();
+  for (const std::uint32_t p : touched_) {
+    time_[cursor_[p]] = kSentinel;  // cursor_ now points just past the list
+    index_[cursor_[p]] = std::numeric_limits<std::uint32_t>::max();
+  }
+  std::fill(time_.begin() + static_cast<std::ptrdiff_t>(total), time_.end(), kSentinel);
   prefix_[0] = 0;
-  for (std::size_t k = 0; k < n; ++k) prefix_[k + 1] = prefix_[k] + time_[k];
+  for (std::size_t k = 0; k < total; ++k) prefix_[k + 1] = prefix_[k] + time_[k];
+  (void)n;
+}
+
+void GridBlockIndex::find_ties(std::size_t first, std::size_t last) {
+  ties_.clear();
+  if (tie_sites_.empty()) return;
+  has_tie_.assign(last - first, 0);
+  if (stamp_.empty()) {
+    stamp_.assign(begin_.size(), 0);
+    stamp_count_.assign(begin_.size(), 0);
+  }
+  std::size_t r0 = first;
+  while (r0 < last) {
+    std::size_t r1 = r0 + 1;
+    while (r1 < last && events_[r1].t_us == events_[r0].t_us) ++r1;
+    if (r1 - r0 >= 2) {
+      // A run of equal timestamps: count its events per pixel (stamped by run), then look up each event's
+      // half-width-0 sites. Linear in the run's length.
+      if (++run_id_ == 0) {  // wrapped: forget old stamps
+        std::fill(stamp_.begin(), stamp_.end(), 0U);
+        run_id_ = 1;
+      }
+      for (std::size_t i = r0; i < r1; ++i) {
+        if (!geometry_.contains(events_[i].x, events_[i].y)) continue;
+        const std::size_t p = pixel_of(events_[i]);
+        if (stamp_[p] != run_id_) {
+          stamp_[p] = run_id_;
+          stamp_count_[p] = 0;
+        }
+        ++stamp_count_[p];
+      }
+      for (std::size_t i = r0; i < r1; ++i) {
+        if (!geometry_.contains(events_[i].x, events_[i].y)) continue;
+        const auto p = static_cast<std::ptrdiff_t>(pixel_of(events_[i]));
+        for (const int s : tie_sites_) {
+          const auto q = static_cast<std::size_t>(p + offset_[s]);
+          if (stamp_[q] == run_id_) {
+            ties_.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(s), stamp_count_[q]});
+            has_tie_[i - first] = 1;
+          }
+        }
+      }
+    }
+    r0 = r1;
+  }
 }
 
 GridRingIndex::GridRingIndex(const Sphere& sphere, const SensorGeometry& geometry)

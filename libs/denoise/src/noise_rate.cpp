@@ -155,8 +155,7 @@ void NoiseRateEstimator::start(std::int64_t t_us) noexcept {
   failed_ = 0.0;
 }
 
-std::int64_t NoiseRateEstimator::threshold(std::int64_t t_us) noexcept {
-  if (!enabled_) return threshold_;
+std::int64_t NoiseRateEstimator::adaptive_threshold(std::int64_t t_us) noexcept {
   if (!started_) start(t_us);
   const std::int64_t p = floor_div(t_us, period_us_);
   if (p != period_) {

@@ -80,23 +80,38 @@ bool SingularMaskTable::cached(std::uint64_t mask) {
 constexpr std::array<std::array<int, 2>, 13> kCompactSites = {
     {{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}, {2, 0}, {-2, 0}, {0, 2}, {0, -2}}};
 
+// Site index of each canonical position in Sphere's order for its 13- and 9-site balls (r ∈ [2, √5) and
+// r ∈ [√2, 2) inclusive); 13 / 9 = the zero entry one past the last site.
+constexpr std::array<int, 13> kLayout13 = {0, 12, 11, 6, 5, 4, 7, 8, 3, 10, 9, 2, 1};
+constexpr std::array<int, 13> kLayout9 = {0, 8, 7, 4, 3, 2, 5, 6, 1, 9, 9, 9, 9};
+
 QuadricBatch::QuadricBatch(const Sphere& sphere)
     : sites_(sphere.size()), pairs_(sphere.pairs()), inv_lt_(1.0 / static_cast<double>(sphere.lt_us())) {
   compact_ = true;
+  for (int k = 0; k < 13; ++k) canonical_[k] = sites_;  // the zero entry
   for (int s = 0; s < sites_; ++s) {
     const auto& site = sphere.sites()[static_cast<std::size_t>(s)];
-    int row = -1;
+    bool found = false;
     for (int k = 0; k < 13; ++k) {
       if (kCompactSites[static_cast<std::size_t>(k)][0] == site.dx &&
-          kCompactSites[static_cast<std::size_t>(k)][1] == site.dy)
-        row = k;
+          kCompactSites[static_cast<std::size_t>(k)][1] == site.dy) {
+        canonical_[k] = s;
+        found = true;
+      }
     }
-    if (row < 0) compact_ = false;
-    slot_[s] = row;
+    compact_ = compact_ && found;
   }
-  if (!compact_) {
-    for (int s = 0; s < sites_; ++s) slot_[s] = s;
-  }
+  const auto matches = [&](const std::array<int, 13>& layout, int n) {
+    if (sites_ != n) return false;
+    for (int k = 0; k < 13; ++k) {
+      if (canonical_[k] != (layout[static_cast<std::size_t>(k)] >= n ? sites_ : layout[static_cast<std::size_t>(k)])) {
+        return false;
+      }
+    }
+    return true;
+  };
+  if (compact_ && matches(kLayout13, 13)) layout_ = 13;
+  if (compact_ && matches(kLayout9, 9)) layout_ = 9;
   for (int pr = 0; pr < pairs_; ++pr) {
     const auto& s = sphere.sites()[static_cast<std::size_t>(1 + 2 * pr)];
     for (int deg = 0; deg <= 4; ++deg) {
@@ -112,111 +127,105 @@ QuadricBatch::QuadricBatch(const Sphere& sphere)
   }
 }
 
-void QuadricBatch::moments_compact(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept {
-  // The moments of the 13-site layout in closed form (absent sites have zero rows). All terms are small
-  // integers, so the result equals any other summation order exactly.
-  for (int l = 0; l < kLanes; ++l) {
-    const double c = n_[0][l];
-    const double ex = n_[1][l] - n_[2][l], ex2 = n_[1][l] + n_[2][l];
-    const double ey = n_[3][l] - n_[4][l], ey2 = n_[3][l] + n_[4][l];
-    const double sd = (n_[5][l] + n_[6][l]) + (n_[7][l] + n_[8][l]);
-    const double du = (n_[5][l] + n_[6][l]) - (n_[7][l] + n_[8][l]);   // Σ u·n over the diagonals
-    const double dv = (n_[5][l] - n_[6][l]) + (n_[7][l] - n_[8][l]);   // Σ v·n
-    const double duv = (n_[5][l] - n_[6][l]) - (n_[7][l] - n_[8][l]);  // Σ uv·n
-    const double fx = n_[9][l] - n_[10][l], fx2 = n_[9][l] + n_[10][l];
-    const double fy = n_[11][l] - n_[12][l], fy2 = n_[11][l] + n_[12][l];
-    m[0][l] = c + ex2 + ey2 + sd + fx2 + fy2;  // 1
-    m[1][l] = ex + du + 2.0 * fx;              // u
-    m[2][l] = ey + dv + 2.0 * fy;              // v
-    m[3][l] = ex2 + sd + 4.0 * fx2;            // u²
-    m[4][l] = duv;                             // uv
-    m[5][l] = ey2 + sd + 4.0 * fy2;            // v²
-    m[6][l] = ex + du + 8.0 * fx;              // u³
-    m[7][l] = dv;                              // u²v
-    m[8][l] = du;                              // uv²
-    m[9][l] = ey + dv + 8.0 * fy;              // v³
-    m[10][l] = ex2 + sd + 16.0 * fx2;          // u⁴
-    m[11][l] = duv;                            // u³v
-    m[12][l] = sd;                             // u²v²
-    m[13][l] = duv;                            // uv³
-    m[14][l] = ey2 + sd + 16.0 * fy2;          // v⁴
-    const double sc = sum_[0][l];
-    const double sex = sum_[1][l] - sum_[2][l], sex2 = sum_[1][l] + sum_[2][l];
-    const double sey = sum_[3][l] - sum_[4][l], sey2 = sum_[3][l] + sum_[4][l];
-    const double ssd = (sum_[5][l] + sum_[6][l]) + (sum_[7][l] + sum_[8][l]);
-    const double sdu = (sum_[5][l] + sum_[6][l]) - (sum_[7][l] + sum_[8][l]);
-    const double sdv = (sum_[5][l] - sum_[6][l]) + (sum_[7][l] - sum_[8][l]);
-    const double sduv = (sum_[5][l] - sum_[6][l]) - (sum_[7][l] - sum_[8][l]);
-    const double sfx = sum_[9][l] - sum_[10][l], sfx2 = sum_[9][l] + sum_[10][l];
-    const double sfy = sum_[11][l] - sum_[12][l], sfy2 = sum_[11][l] + sum_[12][l];
-    r[0][l] = sc + sex2 + sey2 + ssd + sfx2 + sfy2;
-    r[1][l] = sex + sdu + 2.0 * sfx;
-    r[2][l] = sey + sdv + 2.0 * sfy;
-    r[3][l] = sex2 + ssd + 4.0 * sfx2;
-    r[4][l] = sduv;
-    r[5][l] = sey2 + ssd + 4.0 * sfy2;
+void QuadricBatch::set(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
+  if (layout_ == 13) {
+    set_compact<kLayout13>(lane, counts, sums_dt);
+  } else if (layout_ == 9) {
+    set_compact<kLayout9>(lane, counts, sums_dt);
+  } else if (compact_) {
+    // Any other subset of the 13 sites (radius < √2: always singular, so never fitted in practice).
+    std::int32_t c[14];
+    double sm[14];
+    for (int k = 0; k < 13; ++k) {
+      c[k] = counts[canonical_[k]];
+      sm[k] = sums_dt[canonical_[k]];
+    }
+    c[13] = 0;
+    sm[13] = 0.0;
+    set_compact<std::array<int, 13>{0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12}>(lane, c, sm);
+  } else {
+    set_generic(lane, counts, sums_dt);
   }
 }
 
-void QuadricBatch::moments_generic(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept {
-  constexpr int L = kLanes;
-  for (int l = 0; l < L; ++l) {
-    for (int k = 0; k < kMoments; ++k) m[k][l] = 0.0;
-    for (int k = 0; k < kRhs; ++k) r[k][l] = 0.0;
-    m[0][l] = n_[0][l];  // the centre site contributes only to u⁰v⁰
-    r[0][l] = sum_[0][l];
-  }
-  alignas(64) double pe[kMaxSphereSites / 2][L];
-  alignas(64) double po[kMaxSphereSites / 2][L];
-  alignas(64) double se[kMaxSphereSites / 2][L];
-  alignas(64) double so[kMaxSphereSites / 2][L];
-  for (int pr = 0; pr < pairs_; ++pr) {
-    for (int l = 0; l < L; ++l) {
-      pe[pr][l] = n_[1 + 2 * pr][l] + n_[2 + 2 * pr][l];
-      po[pr][l] = n_[1 + 2 * pr][l] - n_[2 + 2 * pr][l];
-      se[pr][l] = sum_[1 + 2 * pr][l] + sum_[2 + 2 * pr][l];
-      so[pr][l] = sum_[1 + 2 * pr][l] - sum_[2 + 2 * pr][l];
-    }
-  }
-  for (const Term& t : even_terms_) {
-    for (int l = 0; l < L; ++l) m[t.moment][l] += t.coef * pe[t.pair][l];
-  }
-  for (const Term& t : odd_terms_) {
-    for (int l = 0; l < L; ++l) m[t.moment][l] += t.coef * po[t.pair][l];
-  }
-  for (const Term& t : even_rhs_terms_) {
-    for (int l = 0; l < L; ++l) r[t.moment][l] += t.coef * se[t.pair][l];
-  }
-  for (const Term& t : odd_rhs_terms_) {
-    for (int l = 0; l < L; ++l) r[t.moment][l] += t.coef * so[t.pair][l];
-  }
+void QuadricBatch::set_generic(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
+  double m[kMoments] = {};
+  double r[kRhs] = {};
+  m[0] = counts[0];  // the centre site contributes only to u⁰v⁰
+  r[0] = sums_dt[0];
+  for (const Term& t : even_terms_) m[t.moment] += t.coef * (counts[1 + 2 * t.pair] + counts[2 + 2 * t.pair]);
+  for (const Term& t : odd_terms_) m[t.moment] += t.coef * (counts[1 + 2 * t.pair] - counts[2 + 2 * t.pair]);
+  for (const Term& t : even_rhs_terms_) r[t.moment] += t.coef * (sums_dt[1 + 2 * t.pair] + sums_dt[2 + 2 * t.pair]);
+  for (const Term& t : odd_rhs_terms_) r[t.moment] += t.coef * (sums_dt[1 + 2 * t.pair] - sums_dt[2 + 2 * t.pair]);
+  for (int i = 0; i < kMoments; ++i) m_[i][lane] = m[i];
+  for (int i = 0; i < kRhs; ++i) r_[i][lane] = r[i];
 }
 
 void QuadricBatch::solve(int n, double* curvature, bool* ok) noexcept {
   constexpr int L = kLanes;
   // Unused lanes repeat lane 0 so that every lane computes something finite.
-  const int rows = compact_ ? 13 : sites_;
   for (int l = n; l < L; ++l) {
-    for (int s = 0; s < rows; ++s) {
-      n_[s][l] = n_[s][0];
-      sum_[s][l] = sum_[s][0];
+    for (int i = 0; i < kMoments; ++i) m_[i][l] = m_[i][0];
+    for (int i = 0; i < kRhs; ++i) r_[i][l] = r_[i][0];
+    for (int i = 0; i < 13; ++i) {
+      nc_[i][l] = nc_[i][0];
+      sc_[i][l] = sc_[i][0];
     }
   }
-  alignas(64) double m[kMoments][L];
-  alignas(64) double r[kRhs][L];
   if (compact_) {
-    moments_compact(m, r);
-  } else {
-    moments_generic(m, r);
+    // The moments of the 13-site layout in closed form (canonical rows: C, (±1,0), (0,±1), (1,1) (1,−1)
+    // (−1,1) (−1,−1), (±2,0), (0,±2); absent sites hold zeros). Counts are summed in integers; every value
+    // is an integer far below 2⁵³, so the result is exact whatever the order of summation.
+    for (int l = 0; l < L; ++l) {
+      const std::int32_t c = nc_[0][l];
+      const std::int32_t ex = nc_[1][l] - nc_[2][l], ex2 = nc_[1][l] + nc_[2][l];
+      const std::int32_t ey = nc_[3][l] - nc_[4][l], ey2 = nc_[3][l] + nc_[4][l];
+      const std::int32_t d1 = nc_[5][l], d2 = nc_[6][l], d3 = nc_[7][l], d4 = nc_[8][l];  // ++ +− −+ −−
+      const std::int32_t sd = (d1 + d2) + (d3 + d4);
+      const std::int32_t du = (d1 + d2) - (d3 + d4);   // Σ u·n over the diagonals
+      const std::int32_t dv = (d1 - d2) + (d3 - d4);   // Σ v·n
+      const std::int32_t duv = (d1 - d2) - (d3 - d4);  // Σ uv·n
+      const std::int32_t fx = nc_[9][l] - nc_[10][l], fx2 = nc_[9][l] + nc_[10][l];
+      const std::int32_t fy = nc_[11][l] - nc_[12][l], fy2 = nc_[11][l] + nc_[12][l];
+      m_[0][l] = c + ex2 + ey2 + sd + fx2 + fy2;  // 1
+      m_[1][l] = ex + du + 2 * fx;                // u
+      m_[2][l] = ey + dv + 2 * fy;                // v
+      m_[3][l] = ex2 + sd + 4 * fx2;              // u²
+      m_[4][l] = duv;                             // uv
+      m_[5][l] = ey2 + sd + 4 * fy2;              // v²
+      m_[6][l] = ex + du + 8 * fx;                // u³
+      m_[7][l] = dv;                              // u²v
+      m_[8][l] = du;                              // uv²
+      m_[9][l] = ey + dv + 8 * fy;                // v³
+      m_[10][l] = ex2 + sd + 16 * fx2;            // u⁴
+      m_[11][l] = duv;                            // u³v
+      m_[12][l] = sd;                             // u²v²
+      m_[13][l] = duv;                            // uv³
+      m_[14][l] = ey2 + sd + 16 * fy2;            // v⁴
+      const double sex = sc_[1][l] - sc_[2][l], sex2 = sc_[1][l] + sc_[2][l];
+      const double sey = sc_[3][l] - sc_[4][l], sey2 = sc_[3][l] + sc_[4][l];
+      const double e1 = sc_[5][l], e2 = sc_[6][l], e3 = sc_[7][l], e4 = sc_[8][l];
+      const double ssd = (e1 + e2) + (e3 + e4);
+      const double sdu = (e1 + e2) - (e3 + e4);
+      const double sdv = (e1 - e2) + (e3 - e4);
+      const double sduv = (e1 - e2) - (e3 - e4);
+      const double sfx = sc_[9][l] - sc_[10][l], sfx2 = sc_[9][l] + sc_[10][l];
+      const double sfy = sc_[11][l] - sc_[12][l], sfy2 = sc_[11][l] + sc_[12][l];
+      r_[0][l] = sc_[0][l] + sex2 + sey2 + ssd + sfx2 + sfy2;
+      r_[1][l] = sex + sdu + 2.0 * sfx;
+      r_[2][l] = sey + sdv + 2.0 * sfy;
+      r_[3][l] = sex2 + ssd + 4.0 * sfx2;
+      r_[4][l] = sduv;
+      r_[5][l] = sey2 + ssd + 4.0 * sfy2;
+    }
   }
-
   // LDLᵀ of G (G_ij = M[p_i + p_j, q_i + q_j], unknowns [f, d, e, a, b, c]) and G x = r, written out so
   // that the compiler vectorises across lanes. u_ij = L_ij·d_j. Only a, b, c are back-substituted.
   alignas(64) double good[L];  // 1 or 0; double so that the lane loop has one element type and vectorises
   for (int l = 0; l < L; ++l) {
-    const double m00 = m[0][l], m10 = m[1][l], m01 = m[2][l], m20 = m[3][l], m11 = m[4][l], m02 = m[5][l];
-    const double m30 = m[6][l], m21 = m[7][l], m12 = m[8][l], m03 = m[9][l];
-    const double m40 = m[10][l], m31 = m[11][l], m22 = m[12][l], m13 = m[13][l], m04 = m[14][l];
+    const double m00 = m_[0][l], m10 = m_[1][l], m01 = m_[2][l], m20 = m_[3][l], m11 = m_[4][l], m02 = m_[5][l];
+    const double m30 = m_[6][l], m21 = m_[7][l], m12 = m_[8][l], m03 = m_[9][l];
+    const double m40 = m_[10][l], m31 = m_[11][l], m22 = m_[12][l], m13 = m_[13][l], m04 = m_[14][l];
     // G rows (f, d, e, a, b, c) × columns, lower triangle.
     const double g00 = m00;
     const double g10 = m10, g11 = m20;
@@ -244,15 +253,15 @@ void QuadricBatch::solve(int n, double* curvature, bool* ok) noexcept {
     const double l54 = u54 * r4;
     const double d5 = g55 - l50 * g50 - l51 * u51 - l52 * u52 - l53 * u53 - l54 * u54, r5 = 1.0 / d5;
 
-    const double y0 = r[0][l];
-    const double y1 = r[1][l] - l10 * y0;
-    const double y2 = r[2][l] - l20 * y0 - l21 * y1;
-    const double y3 = r[3][l] - l30 * y0 - l31 * y1 - l32 * y2;
-    const double y4 = r[5][l] - l40 * y0 - l41 * y1 - l42 * y2 - l43 * y3;             // b pairs with v² = R02
-    const double y5 = r[4][l] - l50 * y0 - l51 * y1 - l52 * y2 - l53 * y3 - l54 * y4;  // c with uv = R11
-    const double x5 = y5 * r5;                                                         // c
-    const double x4 = y4 * r4 - l54 * x5;                                              // b
-    const double x3 = y3 * r3 - l43 * x4 - l53 * x5;                                   // a
+    const double y0 = r_[0][l];
+    const double y1 = r_[1][l] - l10 * y0;
+    const double y2 = r_[2][l] - l20 * y0 - l21 * y1;
+    const double y3 = r_[3][l] - l30 * y0 - l31 * y1 - l32 * y2;
+    const double y4 = r_[5][l] - l40 * y0 - l41 * y1 - l42 * y2 - l43 * y3;             // b pairs with v² = R02
+    const double y5 = r_[4][l] - l50 * y0 - l51 * y1 - l52 * y2 - l53 * y3 - l54 * y4;  // c with uv = R11
+    const double x5 = y5 * r5;                                                          // c
+    const double x4 = y4 * r4 - l54 * x5;                                               // b
+    const double x3 = y3 * r3 - l43 * x4 - l53 * x5;                                    // a
     abc_[0][l] = x3 * inv_lt_;
     abc_[1][l] = x4 * inv_lt_;
     abc_[2][l] = x5 * inv_lt_;
@@ -279,8 +288,11 @@ QuadricFit fit_quadric(const Sphere& sphere, std::span<const std::int32_t> count
   SingularMaskTable table(sphere);
   if (!table.full_rank(mask)) return fit;
   QuadricBatch batch(sphere);
+  std::vector<std::int32_t> c(counts.begin(), counts.end());
   std::vector<double> sums(sums_dt.begin(), sums_dt.end());
-  batch.set(0, counts.data(), sums.data());
+  c.resize(static_cast<std::size_t>(sphere.size()) + 1, 0);  // the zero entry set() expects
+  sums.resize(static_cast<std::size_t>(sphere.size()) + 1, 0.0);
+  batch.set(0, c.data(), sums.data());
   double curv = 0;
   bool ok = false;
   batch.solve(1, &curv, &ok);

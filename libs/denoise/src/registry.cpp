@@ -133,17 +133,16 @@ std::unique_ptr<Filter> make_filter_chain(std::string_view spec,
       // Let the (single) filter report it with its list of known keys.
       per_stage[specs.size() == 1 ? 0 : specs.size() - 1].emplace_back(key, value);
       if (specs.size() > 1) {
-        throw std::invalid_argument(
-            fmt::format("setting '{}': no filter of the chain '{}' has this parameter "
-                        "(evdenoise --list-filters shows them)",
-                        key, spec));
+        throw std::invalid_argument(fmt::format("setting '{}': no filter of the chain '{}' has this parameter "
+                                                "(evdenoise --list-filters shows them)",
+                                                key, spec));
       }
       continue;
     }
     if (owners.size() > 1 && specs[owners.front()]->name != specs[owners.back()]->name) {
-      throw std::invalid_argument(
-          fmt::format("setting '{}': several filters of the chain '{}' have this parameter; write NAME.{}={}", key,
-                      spec, key, value));
+      throw std::invalid_argument(fmt::format(
+          "setting '{}': several filters of the chain '{}' have this parameter; write NAME.{}={}", key, spec, key,
+          value));
     }
     for (const std::size_t i : owners) {
       per_stage[i].emplace_back(key, value);

@@ -56,13 +56,18 @@ class NoiseRateEstimator {
   /// The stream's first event: its period is observed from t_us on (not from the period's start).
   void start(std::int64_t t_us) noexcept;
   /// The threshold in force for an event at t_us (advancing the period when t_us starts a new one).
-  std::int64_t threshold(std::int64_t t_us) noexcept;
+  std::int64_t threshold(std::int64_t t_us) noexcept {
+    if (!enabled_) return threshold_;
+    return adaptive_threshold(t_us);
+  }
   void count_failure() noexcept { ++failed_; }
   [[nodiscard]] double rate_hz() const noexcept { return rate_hz_; }
   [[nodiscard]] std::int64_t current_threshold() const noexcept { return threshold_; }
   [[nodiscard]] std::int64_t periods() const noexcept { return periods_; }
 
  private:
+  std::int64_t adaptive_threshold(std::int64_t t_us) noexcept;
+
   ExposureModel model_;
   bool enabled_;
   std::int64_t period_us_;

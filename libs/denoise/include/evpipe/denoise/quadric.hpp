@@ -14,6 +14,7 @@
 // Whether X has rank 6 depends only on which sites are occupied, so it is decided exactly, once per
 // occupancy mask, by integer (fraction-free) elimination — no numerical rank threshold.
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <unordered_map>
@@ -50,22 +51,19 @@ class SingularMaskTable {
   std::unordered_map<std::uint64_t, bool> cache_;
 };
 
-/// Fits quadrics for up to kLanes events at once (structure of arrays, so the compiler vectorises across
-/// events). Fill lanes [0, n) with set(), then solve(n).
+/// Fits quadrics for up to kLanes events at once: set() reduces an event's per-site statistics to the 15 + 6
+/// exact moments of its normal equations, solve() factorises all lanes together (structure of arrays, so
+/// the compiler vectorises across events).
 class QuadricBatch {
  public:
   static constexpr int kLanes = 8;
 
   explicit QuadricBatch(const Sphere& sphere);
 
-  /// Per-site inputs of lane `lane`: n_s (events of the ball at site s, the event itself included at the
-  /// centre) and S_s (sum of Δt in µs over them; an integer, exact in double).
-  void set(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
-    for (int s = 0; s < sites_; ++s) {
-      n_[slot_[s]][lane] = static_cast<double>(counts[s]);
-      sum_[slot_[s]][lane] = sums_dt[s];
-    }
-  }
+  /// Lane `lane` gets the event whose ball has n_s = counts[s] events at site s (the event itself included
+  /// at the centre) with Δt sum S_s = sums_dt[s] µs (an integer, exact in double). Both arrays must hold a
+  /// zero at index sphere.size() (one past the last site).
+  void set(int lane, const std::int32_t* counts, const double* sums_dt) noexcept;
   /// Solves lanes [0, n) (they must have full-rank masks). curvature[l] = 4ab − c² in (w = Δt/Lt) units;
   /// ok[l] = false only if the factorisation met a non-positive pivot (not seen for full-rank masks).
   void solve(int n, double* curvature, bool* ok) noexcept;
@@ -81,18 +79,27 @@ class QuadricBatch {
     int pair;
     double coef;
   };
-  void moments_compact(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept;
-  void moments_generic(double (&m)[kMoments][kLanes], double (&r)[kRhs][kLanes]) const noexcept;
+  template <std::array<int, 13> K>
+  void set_compact(int lane, const std::int32_t* counts, const double* sums_dt) noexcept {
+    for (std::size_t k = 0; k < 13; ++k) {
+      nc_[k][lane] = counts[K[k]];
+      sc_[k][lane] = sums_dt[K[k]];
+    }
+  }
+  void set_generic(int lane, const std::int32_t* counts, const double* sums_dt) noexcept;
 
   int sites_;
   int pairs_;
-  bool compact_;  // every site within the 13 sites of |u|, |v| ≤ 2, u² + v² ≤ 4 (radius < √5)
+  bool compact_;    // every site within the 13 sites of |u|, |v| ≤ 2, u² + v² ≤ 4 (radius < √5)
+  int layout_ = 0;  // compact: 13 or 9 when the sites are in Sphere's order for those sizes, else 0
   double inv_lt_;
-  int slot_[kMaxSphereSites] = {};            // site → row of n_/sum_ (canonical order when compact)
+  int canonical_[13] = {};                    // compact: the site of each canonical position, or sites_ (a zero entry)
   std::vector<Term> even_terms_, odd_terms_;  // generic path
   std::vector<Term> even_rhs_terms_, odd_rhs_terms_;
-  alignas(64) double n_[kMaxSphereSites][kLanes] = {};
-  alignas(64) double sum_[kMaxSphereSites][kLanes] = {};
+  alignas(64) double m_[kMoments][kLanes] = {};  // generic layouts: moments per lane, formed in set()
+  alignas(64) double r_[kRhs][kLanes] = {};
+  alignas(64) std::int32_t nc_[13][kLanes] = {};  // compact layouts: per-site inputs in canonical order,
+  alignas(64) double sc_[13][kLanes] = {};        // reduced to moments across lanes in solve()
   alignas(64) double abc_[3][kLanes] = {};
 };
 
