@@ -74,6 +74,37 @@ REAL = [  # (folder/file, sensor) — DAVIS346 first: the issue's acceptance is 
 ]
 
 
+# What the numbers mean; kept here so that regenerating the page keeps the explanations beside the tables.
+READING_NOTES = [
+    "What explains the differences:",
+    "",
+    "* **Table 1.** Our `curvature` leaves less residual noise than the paper's \"Ours\" column at every N. On pure noise "
+    "almost every event that passes the density test has a rank-deficient quadric fit (its few neighbours sit on one "
+    "line or a cross of the 13-site grid), and we reject such events (`singular=reject`, docs/algorithms.md); the "
+    "paper does not say what it did with them. The density stage alone (`density only`) lands close to the paper's "
+    "figures, which suggests the paper's residual is mostly density-stage survivors. `baf` and `knoise` reproduce the "
+    "paper's rows (dv-processing semantics, with BAF's start-up artefact: the stream starts at t = 0). `ynoise` with the "
+    "stated threshold 1 keeps far more than the paper's row: the paper's YNoise figures match E-MLB's implementation "
+    "with threshold 2 and no start-up artefact (denoise.md §8.2), i.e. the paper probably ran a different setting "
+    "than it states.",
+    "* **ESR.** ESR is computed on chunks of a fixed 30 000 output events, so a filter that keeps fewer events "
+    "makes each chunk cover more time of the moving scene, which lowers ESR by itself on sparse recordings. The "
+    "random-thinning row measures that effect; where `curvature` is below the raw ESR it is still well above "
+    "random thinning to the same kept share, i.e. what it removes is less structured than average. Raising ESR on "
+    "such a recording would need keeping more events (e.g. `keep_fraction` 0.9 or `singular=keep`), which "
+    "costs noise removal elsewhere; we keep the paper's parameters.",
+    "* **Signal retention.** The curvature stage removes `1 − keep_fraction` = 20 % of every block's fitted events, "
+    "signal or noise, plus the events whose fit is singular; its SR is therefore ~0.7–0.8 even on clean scenes, "
+    "and the slowly moving inner part of a rotating bar (few events per site) is lost first (`evdenoise --png`). "
+    "At low noise a plain density filter (`density only`, `ynoise`) has the better F1; the curvature stage pays "
+    "off from ~3–5 Hz/px up, and at 10 Hz/px the adaptive threshold (`adaptive=true`) recovers F1 by raising the "
+    "density threshold from the estimated rate.",
+    "* **Causal mode** sees only the past half of the ball (half the exposure), so the same density threshold "
+    "removes more signal; it is the zero-latency option, not the accurate one.",
+    "",
+]
+
+
 def run(cmd: list[str]) -> str:
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
@@ -188,6 +219,8 @@ def section_real(ctx: Ctx) -> list[str]:
             m = next(results)
             if i == 0:
                 raw.append(f"{fmt(get(m, 'esr_raw', 'mean'))} ({get(m, 'esr_raw', 'chunks', default=0)})")
+                ctx.cache.setdefault("esr", {})[(path.parent.name, "raw")] = get(m, "esr_raw", "mean")
+            ctx.cache.setdefault("esr", {})[(path.parent.name, f.label)] = get(m, "esr_filtered", "mean")
             kept = m["events_kept"] / max(1, m["events_in"])
             kept_share[(path, f.label)] = kept
             rows[f.label].append(f"{fmt(get(m, 'esr_filtered', 'mean'))} ({get(m, 'esr_filtered', 'chunks', default=0)}), "
@@ -201,6 +234,7 @@ def section_real(ctx: Ctx) -> list[str]:
               for s in (1, 2, 3)]
         vals = [get(m, "esr_filtered", "mean") for m in ms]
         mean = statistics.fmean(vals) if all(v is not None for v in vals) else None
+        ctx.cache.setdefault("esr", {})[(path.parent.name, "random")] = mean
         thinning.append(f"{fmt(mean)} ({get(ms[0], 'esr_filtered', 'chunks', default=0)}), {100.0 * share:.1f} %")
     lines += [header, "|---|" + "---:|" * len(present), "| raw | " + " | ".join(raw) + " |"]
     for f in FILTERS:
@@ -254,6 +288,39 @@ def section_scenes(ctx: Ctx, quick: bool) -> list[str]:
             auc = statistics.fmean(aucs) if all(a is not None for a in aucs) else None
             lines.append(f"| {f.label} | " + " | ".join(cells) + f" | {fmt(auc)} |")
         lines.append("")
+    return lines
+
+
+def section_reading(ctx: Ctx, scenes_quick: bool) -> list[str]:
+    """The issue's acceptance checks, computed from the tables above, and what they mean."""
+    lines = ["## Reading the results", ""]
+    t1 = ctx.cache.get("table1", {})
+    cells = [f"N = {n}: {t1.get(('curvature', n), float('nan')):.1f} (paper {p})" for n, p in zip(PAPER_N, PAPER_TABLE1["curvature"])]
+    ok = all(t1.get(("curvature", n), 1e9) <= p for n, p in zip(PAPER_N, PAPER_TABLE1["curvature"]))
+    lines.append(f"* **Table 1, curvature vs the paper's \"Ours\"** — {'met' if ok else 'NOT met'}: " + "; ".join(cells) + ".")
+    esr = ctx.cache.get("esr", {})
+    for rel, sensor in REAL:
+        name = Path(rel).parent.name
+        if sensor != "DAVIS346" or (name, "raw") not in esr:
+            continue
+        raw, cur, rnd = esr[(name, "raw")], esr.get((name, "curvature")), esr.get((name, "random"))
+        verdict = "met" if cur is not None and raw is not None and cur >= raw else "NOT met"
+        lines.append(f"* **ESR on {name} (DAVIS346), curvature ≥ raw** — {verdict}: curvature {fmt(cur)}, raw {fmt(raw)}, "
+                     f"random thinning to the same kept share {fmt(rnd)}.")
+    by = ctx.cache.get("scenes", {})
+    scenes = SCENES[:2] if scenes_quick else SCENES
+    for hot in (0, 5):
+        f1 = {}
+        for label in ("curvature", "baf", "knoise", "ynoise"):
+            vals = [by[((s, v, 5, hot), label)]["f1"] for s, v in scenes if ((s, v, 5, hot), label) in by]
+            f1[label] = statistics.fmean(vals) if vals else None
+        if f1["curvature"] is None:
+            continue
+        beats = all(f1[b] is not None and f1["curvature"] > f1[b] for b in ("baf", "knoise", "ynoise"))
+        lines.append(f"* **F1 at 5 Hz/px{' with 5 hot pixels' if hot else ''}, curvature vs BAF / KNoise / YNoise** — "
+                     f"{'met' if beats else 'NOT met'}: " + ", ".join(f"{k} {fmt(v)}" for k, v in f1.items()) + ".")
+    lines.append("")
+    lines += READING_NOTES
     return lines
 
 
@@ -322,6 +389,7 @@ def main() -> None:
     doc += section_real(ctx)
     doc += section_scenes(ctx, a.quick)
     doc += section_throughput(ctx, Path(a.bench) if a.bench else None)
+    doc += section_reading(ctx, a.quick)
     doc.append(f"_Run took {time.time() - t0:.0f} s; build `{build.name}`._")
     Path(a.out).write_text("\n".join(doc) + "\n")
     print(f"wrote {a.out}")

@@ -219,6 +219,27 @@ TEST(Curvature, CausalUsesOnlyThePastAndDecidesOnArrival) {
   EXPECT_EQ(d.keep, (std::vector<std::uint8_t>{0, 0, 0, 0, 0}));
 }
 
+TEST(Curvature, CausalRegionDoesNotShrinkFromBlockToBlock) {
+  // Each block is judged against the previous block's consistency region, which must be cut from ALL of that
+  // block's fitted events: cut from the events that survived the judgement before it, the region would shrink by
+  // keep_fraction per block and the filter would end up dropping nearly everything (it did: 77 % of the fitted
+  // events of this recording instead of ~20 %).
+  EVPIPE_REQUIRE_REAL(path, "emlb-demo-01/demo-01.aedat4");
+  const auto ev = io::read_all(path).events;
+  CurvatureOptions o;
+  o.mode = CurvatureMode::causal;
+  o.keep_fraction = 1.0;
+  CurvatureFilter fitted_only(o, kDavis346);
+  const std::size_t fitted = count_kept(run_filter(fitted_only, ev));
+  o.keep_fraction = 0.8;
+  CurvatureFilter share(o, kDavis346);
+  const std::size_t kept = count_kept(run_filter(share, ev));
+  const double ratio = static_cast<double>(kept) / static_cast<double>(fitted);
+  // ~20 % of the fitted events go, give or take the change of the region from one block to the next.
+  EXPECT_GT(ratio, 0.7) << "kept " << kept << " of " << fitted << " fitted events";
+  EXPECT_LT(ratio, 0.9) << "kept " << kept << " of " << fitted << " fitted events";
+}
+
 TEST(Curvature, LatencyAndPendingPerMode) {
   CurvatureOptions o;
   o.mode = CurvatureMode::stream;
@@ -569,6 +590,7 @@ TEST(Curvature, AdaptiveEstimatesTheNoiseRateAndStaysPushInvariant) {
   const auto ev = sim::background_activity(kDavis346, 0, 3'000'000, no, rng);
   CurvatureOptions o;
   o.adaptive = true;
+  o.adaptive_period_us = 1'000'000;  // 3 periods: the first observed, two adapted
   o.curvature = false;
   const Outcome a = run(o, ev, time_cuts(ev, 20'000));
   const double rate = report_value(a.report, "noise_rate_hz");
@@ -696,12 +718,12 @@ TEST(Curvature, ModesOnALabelledSceneWithNoise) {
   }
   // Sanity bounds (the printed figures are the measurement). The bars sweep two thirds of the sensor, so
   // much noise lands next to signal and passes the density test. The curvature stage keeps ≈ 80 % of the
-  // fitted signal and removes part of that noise; the causal half-ball is mostly rank-deficient on moving
-  // edges, so causal with singular = reject loses most of the signal.
+  // fitted signal and removes part of that noise; the causal half-ball is often rank-deficient on moving
+  // edges, so causal with singular = reject loses more than half of the signal (measured: 40.8 % kept).
   EXPECT_GT(q["stream density only"].signal_kept, 0.99) << "seed " << seed;
   EXPECT_GT(q["stream"].signal_kept, 0.7) << "seed " << seed;
   EXPECT_LT(q["stream"].noise_kept, q["stream density only"].noise_kept * 0.7) << "seed " << seed;
-  EXPECT_LT(q["causal"].signal_kept, 0.3) << "seed " << seed;
+  EXPECT_LT(q["causal"].signal_kept, 0.6) << "seed " << seed;
   EXPECT_GT(q["causal singular=keep"].signal_kept, q["causal"].signal_kept + 0.3) << "seed " << seed;
 }
 

@@ -19,11 +19,19 @@
 namespace evpipe::denoise {
 
 const std::vector<FilterSpec>& filter_specs() {
-  // One line per filter; each filter's header declares its spec.
+  // One line per filter (kept so: one added line per new filter); each filter's header declares its spec.
+  // clang-format off
   static const std::vector<FilterSpec> specs = {
       curvature_spec(),  // the paper's filter first
-      baf_spec(),       knoise_spec(), ynoise_spec(), stcf_spec(), dwf_spec(), hotpixel_spec(), random_spec(),
+      baf_spec(),
+      knoise_spec(),
+      ynoise_spec(),
+      stcf_spec(),
+      dwf_spec(),
+      hotpixel_spec(),
+      random_spec(),
   };
+  // clang-format on
   return specs;
 }
 
@@ -133,16 +141,17 @@ std::unique_ptr<Filter> make_filter_chain(std::string_view spec,
       // Let the (single) filter report it with its list of known keys.
       per_stage[specs.size() == 1 ? 0 : specs.size() - 1].emplace_back(key, value);
       if (specs.size() > 1) {
-        throw std::invalid_argument(fmt::format("setting '{}': no filter of the chain '{}' has this parameter "
-                                                "(evdenoise --list-filters shows them)",
-                                                key, spec));
+        throw std::invalid_argument(
+            fmt::format("setting '{}': no filter of the chain '{}' has this parameter "
+                        "(evdenoise --list-filters shows them)",
+                        key, spec));
       }
       continue;
     }
     if (owners.size() > 1 && specs[owners.front()]->name != specs[owners.back()]->name) {
-      throw std::invalid_argument(fmt::format(
-          "setting '{}': several filters of the chain '{}' have this parameter; write NAME.{}={}", key, spec, key,
-          value));
+      throw std::invalid_argument(
+          fmt::format("setting '{}': several filters of the chain '{}' have this parameter; write NAME.{}={}", key,
+                      spec, key, value));
     }
     for (const std::size_t i : owners) {
       per_stage[i].emplace_back(key, value);

@@ -44,9 +44,9 @@ struct CurvatureOptions {
   std::int64_t window_us = 30'000;  ///< block length (the paper's event frame)
   CurvatureMode mode = CurvatureMode::stream;
   NeighbourhoodBackend backend = NeighbourhoodBackend::grid;
-  bool adaptive = false;            ///< set ρ_TH per period from the estimated noise rate
-  double target_noise_pass = 0.01;  ///< adaptive: largest share of pure-noise events passing density
-  std::int64_t adaptive_period_us = 1'000'000;
+  bool adaptive = false;                      ///< set ρ_TH per period from the estimated noise rate
+  double target_noise_pass = 0.01;            ///< adaptive: largest share of pure-noise events passing density
+  std::int64_t adaptive_period_us = 100'000;  // ~9 000 noise events per period at 1 Hz/px
 };
 
 /// Throws std::invalid_argument ("curvature: <key>=<value>: <why>") for an out-of-range option.
