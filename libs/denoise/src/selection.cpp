@@ -1,7 +1,10 @@
 #include "evpipe/denoise/selection.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <numeric>
 
 namespace evpipe::denoise {
@@ -22,14 +25,56 @@ std::size_t keep_count(std::size_t n, double keep_fraction) noexcept {
 
 namespace {
 
+// Order-preserving integer image of a double (no NaN; −0 is folded into +0, which compares equal to it).
+inline std::uint64_t order_key(double v) noexcept {
+  const double w = v + 0.0;  // −0 + 0 = +0
+  std::uint64_t b = 0;
+  std::memcpy(&b, &w, sizeof b);
+  const std::uint64_t flip = (std::uint64_t{0} - (b >> 63)) | (std::uint64_t{1} << 63);
+  return b ^ flip;
+}
+
+// The value of rank k (0-based) of `v`, i.e. what nth_element would put at position k. Large populations
+// are narrowed first by two 11-bit radix histograms of order_key (branch-free passes), so nth_element only
+// runs on the few values that share rank k's 22 leading key bits; the value found is the same.
+double kth_smallest(std::span<const double> v, std::size_t k, std::vector<double>& scratch) {
+  constexpr std::size_t kRadixFrom = 4096;  // below this nth_element on a copy is as fast
+  if (v.size() < kRadixFrom) {
+    scratch.assign(v.begin(), v.end());
+    std::nth_element(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(k), scratch.end());
+    return scratch[k];
+  }
+  constexpr int kBits = 11;
+  constexpr std::size_t kBins = std::size_t{1} << kBits;
+  std::array<std::uint32_t, kBins> hist{};
+  const auto pick = [&](std::size_t& rank) {
+    std::size_t b = 0;
+    while (rank >= hist[b]) rank -= hist[b++];
+    return static_cast<std::uint64_t>(b);
+  };
+  for (const double x : v) ++hist[order_key(x) >> (64 - kBits)];
+  std::size_t rank = k;
+  const std::uint64_t top = pick(rank);
+  hist.fill(0);
+  for (const double x : v) {
+    const std::uint64_t key = order_key(x);
+    hist[(key >> (64 - 2 * kBits)) & (kBins - 1)] += (key >> (64 - kBits)) == top ? 1U : 0U;
+  }
+  const std::uint64_t prefix = (top << kBits) | pick(rank);
+  scratch.clear();
+  for (const double x : v) {
+    if ((order_key(x) >> (64 - 2 * kBits)) == prefix) scratch.push_back(x);
+  }
+  std::nth_element(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(rank), scratch.end());
+  return scratch[rank];
+}
+
 // Keeps the k smallest keys, ties at the cut by index; returns the largest kept key. Selection on a plain
 // copy of the keys (nth_element), then one pass in index order, so ties go to the earlier index.
 double keep_smallest(std::span<const double> key, std::size_t k, std::vector<std::uint8_t>& keep,
                      std::vector<double>& scratch) {
   const std::size_t n = key.size();
-  scratch.assign(key.begin(), key.end());
-  std::nth_element(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(k - 1), scratch.end());
-  const double cut = scratch[k - 1];
+  const double cut = kth_smallest(key, k - 1, scratch);
   std::size_t below = 0;
   for (std::size_t i = 0; i < n; ++i) below += key[i] < cut ? 1 : 0;
   std::size_t ties = k - below;  // how many keys equal to `cut` are kept, first come first served
@@ -42,13 +87,17 @@ double keep_smallest(std::span<const double> key, std::size_t k, std::vector<std
 }
 
 double median_of(std::span<const double> values, std::vector<double>& v) {
-  v.assign(values.begin(), values.end());
-  const std::size_t n = v.size();
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(n / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  const double upper = *mid;
+  const std::size_t n = values.size();
+  const double upper = kth_smallest(values, n / 2, v);
   if (n % 2 == 1) return upper;
-  const double lower = *std::max_element(v.begin(), mid);
+  // The value of rank n/2 − 1: `upper` again if enough values equal it, else the largest value below it.
+  std::size_t below = 0;
+  double lower = -std::numeric_limits<double>::infinity();
+  for (const double x : values) {
+    below += x < upper ? 1 : 0;
+    lower = x < upper && x > lower ? x : lower;
+  }
+  if (below < n / 2) lower = upper;
   return lower + (upper - lower) / 2.0;  // no overflow for huge values of equal sign
 }
 
