@@ -315,6 +315,50 @@ TEST(Selection, MedianRuleOnRandomPopulationsMatchesSorting) {
   }
 }
 
+TEST(Selection, LargePopulationsMatchSorting) {
+  // ≥ 4096 values take the radix pre-selection: clustered values, ties, ±0, ±inf-free wide magnitudes.
+  const std::uint64_t seed = 4242;
+  std::mt19937_64 rng(seed);
+  for (int trial = 0; trial < 24; ++trial) {
+    const std::size_t n = 4096 + rng() % 20000 + (trial % 2);
+    std::vector<double> c(n);
+    for (auto& v : c) {
+      switch (rng() % 4) {
+        case 0:
+          v = static_cast<double>(static_cast<int>(rng() % 41) - 20) * 0.25;  // ties
+          break;
+        case 1:
+          v = (rng() % 2 ? -0.0 : 0.0);
+          break;
+        case 2:
+          v = std::ldexp(static_cast<double>(rng() % 1000) - 500.0, static_cast<int>(rng() % 80) - 40);
+          break;
+        default:
+          v = 1e-3 * (static_cast<double>(rng() % 100000) - 30000.0);  // one dense cluster
+      }
+    }
+    const double f = trial % 3 == 0 ? 0.8 : 0.05 + 0.95 * static_cast<double>(rng() % 1000) / 1000.0;
+    for (const auto rule : {CurvatureRule::median, CurvatureRule::flattest}) {
+      std::vector<std::uint8_t> keep;
+      const auto region = select_consistent(c, f, rule, keep);
+      std::vector<double> sorted = c;
+      std::sort(sorted.begin(), sorted.end());
+      const double med = n % 2 ? sorted[n / 2] : sorted[n / 2 - 1] + (sorted[n / 2] - sorted[n / 2 - 1]) / 2.0;
+      const double centre = rule == CurvatureRule::median ? med : 0.0;
+      ASSERT_EQ(region.centre, centre) << "seed " << seed << " trial " << trial;
+      std::vector<std::size_t> order(n);
+      std::iota(order.begin(), order.end(), 0U);
+      std::stable_sort(order.begin(), order.end(),
+                       [&](std::size_t a, std::size_t b) { return std::abs(c[a] - centre) < std::abs(c[b] - centre); });
+      const std::size_t k = keep_count(n, f);
+      ASSERT_EQ(region.half_width, std::abs(c[order[k - 1]] - centre)) << "seed " << seed << " trial " << trial;
+      std::vector<std::uint8_t> expect(n, 0);
+      for (std::size_t j = 0; j < k; ++j) expect[order[j]] = 1;
+      ASSERT_EQ(keep, expect) << "seed " << seed << " trial " << trial;
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------------------------- noise model
 
 TEST(NoiseRate, ExposureOfThePaperBall) {
