@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import os
 import subprocess
 import sys
@@ -50,7 +51,9 @@ def google_benchmark(exe: Path, min_time: float, extra: list[str] | None = None)
     if r.returncode != 0:
         sys.exit(f"bench_denoise.py: {exe} failed:\n{r.stderr[-2000:]}")
     data = json.loads(r.stdout)
-    return {b["name"]: b for b in data["benchmarks"] if b.get("run_type", "iteration") == "iteration"}
+    # Benchmarks with a fixed iteration count get "/iterations:N" appended to their name.
+    return {re.sub(r"/iterations:\d+", "", b["name"]): b for b in data["benchmarks"]
+            if b.get("run_type", "iteration") == "iteration"}
 
 
 def mev(b: dict | None) -> float | None:
