@@ -63,19 +63,6 @@ def build_type(binary: Path) -> str:
     return "unknown"
 
 
-def read_dv(path: Path) -> tuple[np.ndarray, tuple[int, int]]:
-    rec = dv.io.MonoCameraRecording(str(path))
-    parts = []
-    while True:
-        batch = rec.getNextEventBatch()
-        if batch is None:
-            break
-        a = batch.numpy()
-        parts.append(np.stack([a["timestamp"], a["x"], a["y"], a["polarity"]], axis=1).astype(np.int64))
-    res = rec.getEventResolution()
-    return np.concatenate(parts), (int(res[0]), int(res[1]))
-
-
 def to_store(ev: np.ndarray) -> dv.EventStore:
     store = dv.EventStore()
     for t, x, y, p in ev.tolist():
@@ -155,7 +142,7 @@ def main() -> None:
         demo = evpipe_pyenv.default_recording()
         if not args.no_real:
             if demo.exists():
-                once, res = read_dv(demo)
+                once, res, _ = evpipe_pyenv.read_with_dv(demo)
                 span = int(once[-1, 0] - once[0, 0] + 1)
                 ev = np.concatenate([once + np.array([k * span, 0, 0, 0]) for k in range(16)])
                 datasets.append(("real (demo-01 x16)", ev, res, demo, 16))

@@ -67,21 +67,6 @@ def synthetic_text(path: Path, n: int = 200_000) -> None:
         np.savetxt(f, cols, fmt="%d")
 
 
-def read_dv(path: Path) -> tuple[np.ndarray, tuple[int, int], tuple[int, int]]:
-    rec = dv.io.MonoCameraRecording(str(path))
-    res = rec.getEventResolution()
-    time_range = rec.getTimeRange()
-    parts = []
-    while True:
-        batch = rec.getNextEventBatch()
-        if batch is None:
-            break
-        a = batch.numpy()
-        parts.append(np.stack([a["timestamp"], a["x"], a["y"], a["polarity"]], axis=1).astype(np.int64))
-    events = np.concatenate(parts) if parts else np.zeros((0, 4), dtype=np.int64)
-    return events, (int(res[0]), int(res[1])), (int(time_range[0]), int(time_range[1]))
-
-
 def read_aedat(path: Path) -> tuple[np.ndarray, tuple[int, int]]:
     decoder = aedat.Decoder(str(path))
     streams = {i: s for i, s in decoder.id_to_stream().items() if s["type"] == "events"}
@@ -139,7 +124,7 @@ def main() -> None:
         for compression in ("lz4", "zstd", "none"):
             out = work / f"evpipe-{compression}.aedat4"
             run([str(evconvert), "-q", "--compression", compression, str(source), str(out)])
-            dv_events, dv_size, dv_range = read_dv(out)
+            dv_events, dv_size, dv_range = evpipe_pyenv.read_with_dv(out)
             compare(f"dv-processing ({compression})", dv_events, ref)
             ae_events, ae_size = read_aedat(out)
             compare(f"aedat ({compression})", ae_events, ref)

@@ -71,18 +71,6 @@ def evpipe_events(tool: Path, path: Path) -> tuple[np.ndarray, tuple[int, int]]:
     return cols, (int(fields["width"]), int(fields["height"]))
 
 
-def dv_reader_events(path: Path) -> np.ndarray:
-    rec = dv.io.MonoCameraRecording(str(path))
-    parts = []
-    while True:
-        batch = rec.getNextEventBatch()
-        if batch is None:
-            break
-        a = batch.numpy()
-        parts.append(np.stack([a["timestamp"], a["x"], a["y"], a["polarity"]], axis=1).astype(np.int64))
-    return np.concatenate(parts) if parts else np.zeros((0, 4), dtype=np.int64)
-
-
 def dv_decisions(make, res: tuple[int, int], ev: np.ndarray) -> np.ndarray:
     f = make(res)
     keep = np.fromiter((f.retain(dv.Event(int(t), int(x), int(y), bool(p))) for t, x, y, p in ev), dtype=bool,
@@ -147,7 +135,7 @@ def main() -> None:
         ev, res = evpipe_events(tool, path)
         print(f"{rel}: {len(ev)} events, {res[0]}x{res[1]}")
         if path.suffix == ".aedat4":
-            mine = dv_reader_events(path)
+            mine = evpipe_pyenv.read_with_dv(path)[0]
             if mine.shape != ev.shape or np.any(mine != ev):
                 failures.append(f"{rel}: dv-processing's reader delivers other events than evpipe's")
                 print("  FAIL: dv-processing's reader delivers other events than evpipe's")

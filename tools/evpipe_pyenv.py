@@ -88,3 +88,24 @@ def find_binary(name: str, explicit: str | None = None, env_var: str | None = No
 
 def default_recording() -> Path:
     return REPO.parent / "shared" / "data" / "real" / "emlb-demo-01" / "demo-01.aedat4"
+
+
+def read_with_dv(path: Path):
+    """Events of an AEDAT 4.0 file read by dv-processing's MonoCameraRecording, as an (n, 4) int64 array
+    (t, x, y, p), with the resolution (w, h) and the time range (first, last) from the file's data table.
+    Needs ensure_packages(["dv_processing", "numpy"]) first."""
+    import dv_processing as dv
+    import numpy as np
+
+    rec = dv.io.MonoCameraRecording(str(path))
+    res = rec.getEventResolution()
+    time_range = rec.getTimeRange()
+    parts = []
+    while True:
+        batch = rec.getNextEventBatch()
+        if batch is None:
+            break
+        a = batch.numpy()
+        parts.append(np.stack([a["timestamp"], a["x"], a["y"], a["polarity"]], axis=1).astype(np.int64))
+    events = np.concatenate(parts) if parts else np.zeros((0, 4), dtype=np.int64)
+    return events, (int(res[0]), int(res[1])), (int(time_range[0]), int(time_range[1]))

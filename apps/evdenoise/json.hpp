@@ -38,7 +38,4 @@ class JsonWriter {
   bool after_key_ = false;
 };
 
-/// `s` as a JSON string literal (quotes included).
-std::string json_quote(std::string_view s);
-
 }  // namespace evdenoise

@@ -1,36 +1,12 @@
 #include "summary.hpp"
 
+#include "json_quote.hpp"
+
 #include <fmt/format.h>
 
 namespace evpipe::app {
 
 namespace {
-
-std::string json_escape(const std::string& in) {
-  std::string out;
-  for (const char c : in) {
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      case '\t':
-        out += "\\t";
-        break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20)
-          out += fmt::format("\\u{:04x}", static_cast<int>(c));
-        else
-          out += c;
-    }
-  }
-  return out;
-}
 
 std::string rate(double hz) {
   if (hz >= 1e6) return fmt::format("{:.2f} Mev/s", hz / 1e6);
@@ -85,22 +61,22 @@ std::string format_text(const RunSummary& s) {
 std::string format_json(const RunSummary& s) {
   const auto& st = *s.stream;
   return fmt::format(
-      "{{\"source\":\"{}\",\"format\":\"{}\",\"width\":{},\"height\":{},\"geometry_known\":{},"
+      "{{\"source\":{},\"format\":\"{}\",\"width\":{},\"height\":{},\"geometry_known\":{},"
       "\"events\":{},\"on_events\":{},\"first_t_us\":{},\"last_t_us\":{},\"duration_us\":{},"
       "\"mean_rate_hz\":{:.3f},\"peak_rate_hz\":{:.3f},\"peak_bin_us\":{},\"on_share\":{:.6f},"
       "\"out_of_order\":{},\"out_of_order_dropped\":{},\"discontinuities\":{},\"skipped_non_dvs\":{},"
       "\"invalid_events\":{},\"corrupt_packets\":{},\"truncated_bytes\":{},\"dropped_packets\":{},"
-      "\"dropped_events\":{},\"denoise_filter\":\"{}\",\"denoise_in\":{},\"denoise_kept\":{},"
+      "\"dropped_events\":{},\"denoise_filter\":{},\"denoise_in\":{},\"denoise_kept\":{},"
       "\"denoise_latency_us\":{},\"windows\":{},\"window_events\":{},\"window_us\":{},\"hop_us\":{},"
-      "\"wall_s\":{:.6f},\"interrupted\":{},\"error\":\"{}\"}}\n",
-      json_escape(s.info.name), s.info.format, s.info.geometry.width, s.info.geometry.height, s.info.geometry_known,
+      "\"wall_s\":{:.6f},\"interrupted\":{},\"error\":{}}}\n",
+      json_quote(s.info.name), s.info.format, s.info.geometry.width, s.info.geometry.height, s.info.geometry_known,
       st.events(), st.on_events(), st.first_t_us() ? fmt::format("{}", *st.first_t_us()) : "null",
       st.last_t_us() ? fmt::format("{}", *st.last_t_us()) : "null", st.duration_us(), st.mean_rate_hz(),
       st.peak_rate_hz(), st.peak_bin_us(), st.on_share(), s.source.out_of_order, s.out_of_order_dropped,
       s.source.discontinuities, s.source.skipped_non_dvs, s.source.invalid_events, s.source.corrupt_packets,
-      s.source.truncated_bytes, s.source.dropped_packets, s.source.dropped_events, json_escape(s.denoise_filter),
+      s.source.truncated_bytes, s.source.dropped_packets, s.source.dropped_events, json_quote(s.denoise_filter),
       s.denoise_in, s.denoise_kept, s.denoise_latency_us, s.windows, s.window_events, s.window_us, s.hop_us, s.wall_s,
-      s.interrupted, json_escape(s.error));
+      s.interrupted, json_quote(s.error));
 }
 
 }  // namespace evpipe::app
