@@ -7,7 +7,7 @@ measures); no third-party Python package is needed. Sections:
   (b) ESR (E-MLB) on the real recordings in ../shared/data/real (raw and every filter);
   (c) labelled evsim scenes at 0.1, 1, 3, 5, 10 Hz/pixel, without and with 5 hot pixels: SR, NR, F1, AUC;
   (d) throughput of every filter through evdenoise on the real E-MLB recording and the densest scene, plus
-      the Google Benchmark ratios when tools/bench_denoise.sh output is given (--bench FILE).
+      the Google Benchmark ratios when tools/bench_denoise.py output is given (--bench FILE).
 
   tools/denoise_results.py [--build build/release] [--out docs/results-denoise.md] [--work build/denoise-results]
                            [--seeds 10] [--jobs 2] [--bench FILE] [--quick]
@@ -358,9 +358,9 @@ def section_throughput(ctx: Ctx, bench: Path | None) -> list[str]:
         lines.append(f"| {f.label} | " + " | ".join(cells) + f" | {'n/a' if lat is None else f'{lat / 1000:.1f} ms'} |")
     lines.append("")
     if bench is not None and bench.exists():
-        lines += ["### Benchmarks (tools/bench_denoise.sh, one run)", "", "```", bench.read_text().rstrip(), "```", ""]
+        lines += ["### Benchmarks (tools/bench_denoise.py, one run)", "", "```", bench.read_text().rstrip(), "```", ""]
     else:
-        lines += ["Ratios against FLANN and dv-processing: run `tools/bench_denoise.sh` (docs/results-denoise.md keeps "
+        lines += ["Ratios against FLANN and dv-processing: run `tools/bench_denoise.py` (docs/results-denoise.md keeps "
                   "its last output when this script gets `--bench FILE`).", ""]
     return lines
 
@@ -372,7 +372,7 @@ def main() -> None:
     ap.add_argument("--work", default=str(ROOT / "build" / "denoise-results"))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
-    ap.add_argument("--bench", help="text output of tools/bench_denoise.sh to include")
+    ap.add_argument("--bench", help="text output of tools/bench_denoise.py to include")
     ap.add_argument("--quick", action="store_true", help="fewer seeds and scenes (a smoke run)")
     a = ap.parse_args()
     build = Path(a.build)
