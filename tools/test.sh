@@ -39,18 +39,19 @@ if [ "${EVPIPE_SKIP_FUZZ:-0}" != 1 ]; then
   bash tools/run_fuzzers.sh "${EVPIPE_FUZZ_SECONDS:-20}"
 fi
 
+# A Python cross-check: exit 77 means "skipped" (PyPI unreachable; the script says why), anything else non-zero fails.
+cross_check() {
+  set +e
+  python3 "$@"
+  local rc=$?
+  set -e
+  if [ $rc -eq 77 ]; then echo "cross-check skipped (see message above)"; elif [ $rc -ne 0 ]; then exit $rc; fi
+}
+
 stamp "cross-check: AEDAT 4.0 written by evpipe, read by dv-processing and aedat"
-set +e
-python3 tools/check_aedat4_python.py --build build/ci
-rc=$?
-set -e
-if [ $rc -eq 77 ]; then echo "cross-check skipped (see message above)"; elif [ $rc -ne 0 ]; then exit $rc; fi
+cross_check tools/check_aedat4_python.py --build build/ci
 
 stamp "cross-check: baf / knoise decisions vs dv-processing 2.0.4, event by event"
-set +e
-python3 tools/check_denoise_dv.py --build build/ci
-rc=$?
-set -e
-if [ $rc -eq 77 ]; then echo "cross-check skipped (see message above)"; elif [ $rc -ne 0 ]; then exit $rc; fi
+cross_check tools/check_denoise_dv.py --build build/ci
 
 stamp "all tests passed"

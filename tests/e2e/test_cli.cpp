@@ -1,7 +1,6 @@
 // End-to-end: the real evpipe / evconvert / evsim binaries on recorded files.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -16,39 +15,19 @@
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/io/reader.hpp"
+#include "evpipe_run.hpp"
 #include "evpipe_test_data.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
+using evpipe::testing::q;
+using evpipe::testing::Run;
+using evpipe::testing::slurp;
 
 Run run(const std::string& cmd) {
-  static int counter = 0;
-  const auto dir = evpipe::testing::temp_dir("e2e");
-  const auto out = dir / ("out" + std::to_string(counter) + ".txt");
-  const auto err = dir / ("err" + std::to_string(counter++) + ".txt");
-  const std::string full = cmd + " >" + out.string() + " 2>" + err.string() + " </dev/null";
-  const int rc = std::system(full.c_str());
-  Run r;
-  r.status = WIFEXITED(rc) ? WEXITSTATUS(rc) : 128 + WTERMSIG(rc);
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
-}
-
-std::string q(const std::string& s) {
-  return "'" + s + "'";
+  return evpipe::testing::run(cmd, evpipe::testing::temp_dir("e2e"));
 }
 
 // Minimal extraction of a number/bool/string field from evpipe's flat --json summary.

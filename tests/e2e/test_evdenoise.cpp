@@ -2,7 +2,6 @@
 // direct run of the same filter through the library. Every filter of the registry is exercised generically.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
@@ -18,6 +17,7 @@
 #include "evpipe/metrics/classification.hpp"
 #include "evpipe/metrics/esr.hpp"
 #include "evpipe/metrics/roc.hpp"
+#include "evpipe_run.hpp"
 #include "evpipe_test_data.hpp"
 
 namespace fs = std::filesystem;
@@ -27,16 +27,9 @@ namespace {
 
 // ---- running binaries -------------------------------------------------------------------------------------
 
-struct Run {
-  int status = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
+using evpipe::testing::q;
+using evpipe::testing::Run;
+using evpipe::testing::slurp;
 
 fs::path dir() {
   static const fs::path d = evpipe::testing::temp_dir("evdenoise");
@@ -44,20 +37,7 @@ fs::path dir() {
 }
 
 Run run(const std::string& cmd) {
-  static int counter = 0;
-  const auto out = dir() / ("stdout" + std::to_string(counter) + ".txt");
-  const auto err = dir() / ("stderr" + std::to_string(counter++) + ".txt");
-  const std::string full = cmd + " >" + out.string() + " 2>" + err.string() + " </dev/null";
-  const int rc = std::system(full.c_str());
-  Run r;
-  r.status = WIFEXITED(rc) ? WEXITSTATUS(rc) : 128 + WTERMSIG(rc);
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
-}
-
-std::string q(const std::string& s) {
-  return "'" + s + "'";
+  return evpipe::testing::run(cmd, dir());
 }
 
 const std::string kEvdenoise = EVDENOISE_EXE;
