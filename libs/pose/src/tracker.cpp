@@ -1,0 +1,1 @@
+// placeholder: implemented by the pose issue (issue 5)

@@ -1,0 +1,1 @@
+// placeholder: written with the pose issue (issue 5)
