@@ -140,9 +140,23 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
                     {{"camera", str(c.pose.camera)},
                      {"model", str(c.pose.model)},
                      {"prior", str(c.pose.prior)},
-                     {"poses_out", str(c.pose.poses_out)}});
+                     {"poses_out", str(c.pose.poses_out)},
+                     {"ground_truth", str(c.pose.ground_truth)},
+                     {"lost_after_windows", integer(c.pose.lost_after_windows)}});
+    } else if (section == "lcm") {
+      apply_section(node, name, section,
+                    {{"enabled", boolean(c.lcm.enabled)},
+                     {"url", str(c.lcm.url)},
+                     {"pose_channel", str(c.lcm.pose_channel)},
+                     {"stats_channel", str(c.lcm.stats_channel)},
+                     {"stats_period_ms", i64(c.lcm.stats_period_ms)}});
+    } else if (section == "pipeline") {
+      apply_section(node, name, section,
+                    {{"source_queue_packets", i64(c.pipeline.source_queue_packets)},
+                     {"pose_queue_windows", i64(c.pipeline.pose_queue_windows)},
+                     {"publish_queue", i64(c.pipeline.publish_queue)}});
     } else {
-      fail(name, section, "unknown section (known: log, source, device, window, denoise, pose)");
+      fail(name, section, "unknown section (known: log, source, device, window, denoise, pose, lcm, pipeline)");
     }
   }
   try {
@@ -188,6 +202,18 @@ void RunConfig::validate() const {
   check(window.hop_us > 0 && window.hop_us <= window.length_us, "window.hop_us",
         fmt::format("must be in [1, window.length_us = {}], got {}", window.length_us, window.hop_us));
   check(!denoise.filter.empty(), "denoise.filter", "must name a filter or chain, or be 'none'");
+  check(pose.lost_after_windows >= 1, "pose.lost_after_windows",
+        fmt::format("must be >= 1, got {}", pose.lost_after_windows));
+  check(!lcm.pose_channel.empty(), "lcm.pose_channel", "must not be empty");
+  check(!lcm.stats_channel.empty(), "lcm.stats_channel", "must not be empty");
+  check(lcm.stats_period_ms >= 10 && lcm.stats_period_ms <= 1000, "lcm.stats_period_ms",
+        fmt::format("must be in [10, 1000] (interfaces.md: at least once a second), got {}", lcm.stats_period_ms));
+  check(pipeline.source_queue_packets >= 2 && pipeline.source_queue_packets <= 65536, "pipeline.source_queue_packets",
+        fmt::format("must be in [2, 65536], got {}", pipeline.source_queue_packets));
+  check(pipeline.pose_queue_windows >= 1 && pipeline.pose_queue_windows <= 1024, "pipeline.pose_queue_windows",
+        fmt::format("must be in [1, 1024], got {}", pipeline.pose_queue_windows));
+  check(pipeline.publish_queue >= 1 && pipeline.publish_queue <= 65536, "pipeline.publish_queue",
+        fmt::format("must be in [1, 65536], got {}", pipeline.publish_queue));
 }
 
 std::string RunConfig::to_yaml() const {
@@ -229,6 +255,20 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "model" << YAML::Value << pose.model;
   out << YAML::Key << "prior" << YAML::Value << pose.prior;
   out << YAML::Key << "poses_out" << YAML::Value << pose.poses_out;
+  out << YAML::Key << "ground_truth" << YAML::Value << pose.ground_truth;
+  out << YAML::Key << "lost_after_windows" << YAML::Value << pose.lost_after_windows;
+  out << YAML::EndMap;
+  out << YAML::Key << "lcm" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "enabled" << YAML::Value << lcm.enabled;
+  out << YAML::Key << "url" << YAML::Value << lcm.url;
+  out << YAML::Key << "pose_channel" << YAML::Value << lcm.pose_channel;
+  out << YAML::Key << "stats_channel" << YAML::Value << lcm.stats_channel;
+  out << YAML::Key << "stats_period_ms" << YAML::Value << lcm.stats_period_ms;
+  out << YAML::EndMap;
+  out << YAML::Key << "pipeline" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "source_queue_packets" << YAML::Value << pipeline.source_queue_packets;
+  out << YAML::Key << "pose_queue_windows" << YAML::Value << pipeline.pose_queue_windows;
+  out << YAML::Key << "publish_queue" << YAML::Value << pipeline.publish_queue;
   out << YAML::EndMap;
   out << YAML::EndMap;
   return out.c_str();

@@ -1,1 +1,148 @@
-// placeholder: implemented by the pose issue (issue 5)
+#include "evpipe/pose/estimator.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+namespace evpipe::pose {
+
+void EstimatorOptions::validate() const {
+  if (lost_after_windows < 1)
+    throw std::invalid_argument(fmt::format("pose.lost_after_windows: must be >= 1, got {}", lost_after_windows));
+  if (!(reinit_position_tolerance_m > 0.0) || !std::isfinite(reinit_position_tolerance_m))
+    throw std::invalid_argument(
+        fmt::format("pose.reinit_position_tolerance_m: must be > 0, got {}", reinit_position_tolerance_m));
+  if (!(reinit_angle_tolerance_deg > 0.0 && reinit_angle_tolerance_deg <= 180.0))
+    throw std::invalid_argument(
+        fmt::format("pose.reinit_angle_tolerance_deg: must be in (0, 180], got {}", reinit_angle_tolerance_deg));
+}
+
+PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model,
+                             std::optional<camera::PosePrior> prior, EstimatorOptions options)
+    : camera_(std::move(camera)), model_(std::move(model)), prior_(std::move(prior)), options_(std::move(options)) {
+  options_.validate();
+  if (model_.segments_m.size() < 4)
+    throw std::invalid_argument(
+        fmt::format("line model '{}' has {} segments; OPnL needs at least 4", model_.name, model_.segments_m.size()));
+}
+
+void PoseEstimator::reset() {
+  last_.reset();
+  previous_.reset();
+  unhealthy_in_a_row_ = 0;
+  set_status(TrackStatus::initialising);
+}
+
+void PoseEstimator::set_status(TrackStatus s) {
+  if (status_ == TrackStatus::tracking && s == TrackStatus::lost) ++counters_.losses;
+  status_ = s;
+}
+
+camera::Pose PoseEstimator::predict(std::int64_t t_end_us) const {
+  if (!options_.constant_velocity || !previous_ || !last_ || last_->t_us <= previous_->t_us) return last_->pose;
+  // Constant velocity on SE(3): apply the last relative motion, scaled to the time step, once more.
+  const double s = static_cast<double>(t_end_us - last_->t_us) / static_cast<double>(last_->t_us - previous_->t_us);
+  if (!(s > 0.0) || s > 3.0) return last_->pose;                       // a long gap makes the extrapolation meaningless
+  const camera::Pose delta = last_->pose * previous_->pose.inverse();  // T_last_prev in the camera frame
+  const Eigen::AngleAxisd rot(delta.q_cam_model);
+  camera::Pose step;
+  step.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(rot.angle() * s, rot.axis()));
+  step.t_cam_model_m = delta.t_cam_model_m * s;  // small-motion approximation of the screw, fine at window steps
+  return step * last_->pose;
+}
+
+PoseEstimate PoseEstimator::initialise(EventSpan window, std::int64_t t_end_us) {
+  PoseEstimate out;
+  out.t_us = t_end_us;
+  out.window_events = window.size();
+  out.status = status_;
+  if (last_) {
+    out.T_cam_model = last_->pose;
+  } else if (prior_) {
+    out.T_cam_model = prior_->pose;
+  }
+  if (window.size() < options_.init_min_events) {
+    out.note = fmt::format("{} events in the window, initialisation needs {}", window.size(), options_.init_min_events);
+    return out;
+  }
+  ++counters_.init_attempts;
+  // After a loss search around the last good pose; before the first success around the configured prior.
+  std::optional<camera::PosePrior> search = prior_;
+  if (last_) {
+    camera::PosePrior around;
+    around.pose = last_->pose;
+    around.position_tolerance_m = options_.reinit_position_tolerance_m;
+    around.angle_tolerance_deg = options_.reinit_angle_tolerance_deg;
+    search = around;
+  }
+  const InitResult init = initialise_pose(window, camera_, model_, search, options_.init);
+  if (!init.ok) {
+    out.note = "initialisation: " + init.message;
+    return out;
+  }
+  // Polish the initial pose on this window's events with the tracker so the first published pose carries a
+  // robust scale and a covariance like every later one.
+  const TrackUpdate u = track_window(window, camera_, model_, init.T_cam_model, options_.track);
+  if (!u.healthy) {
+    out.note = "initialisation found a pose but tracking rejected it: " + u.reason;
+    return out;
+  }
+  ++counters_.init_successes;
+  previous_.reset();
+  last_ = camera::StampedPose{t_end_us, u.T_cam_model};
+  unhealthy_in_a_row_ = 0;
+  set_status(TrackStatus::tracking);
+  out.status = status_;
+  out.T_cam_model = u.T_cam_model;
+  out.pose_valid = true;
+  out.covariance = u.covariance;
+  out.covariance_known = u.covariance_known;
+  out.inliers = u.inliers;
+  out.sigma_px = u.sigma_px;
+  out.initialised_now = true;
+  return out;
+}
+
+PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
+  ++counters_.windows;
+  PoseEstimate out;
+  if (status_ != TrackStatus::tracking) {
+    out = initialise(window, t_end_us);
+  } else {
+    const camera::Pose predicted = predict(t_end_us);
+    const TrackUpdate u = track_window(window, camera_, model_, predicted, options_.track);
+    out.t_us = t_end_us;
+    out.window_events = window.size();
+    if (u.healthy) {
+      unhealthy_in_a_row_ = 0;
+      previous_ = last_;
+      last_ = camera::StampedPose{t_end_us, u.T_cam_model};
+      out.T_cam_model = u.T_cam_model;
+      out.pose_valid = true;
+      out.covariance = u.covariance;
+      out.covariance_known = u.covariance_known;
+      out.inliers = u.inliers;
+      out.sigma_px = u.sigma_px;
+    } else {
+      ++counters_.unhealthy_updates;
+      ++unhealthy_in_a_row_;
+      out.T_cam_model = last_->pose;  // hold the last good pose; not published as valid
+      out.inliers = u.inliers;
+      out.sigma_px = u.sigma_px;
+      out.note = "tracking: " + u.reason;
+      if (unhealthy_in_a_row_ >= options_.lost_after_windows) {
+        set_status(TrackStatus::lost);
+        previous_.reset();
+      }
+    }
+    out.status = status_;
+  }
+  ++counters_.windows_by_status[static_cast<int>(out.status)];
+  return out;
+}
+
+}  // namespace evpipe::pose

@@ -59,10 +59,26 @@ struct DenoiseConfig {
 };
 
 struct PoseFilesConfig {
-  std::string camera;     ///< camera calibration YAML
-  std::string model;      ///< line model YAML / DXF
-  std::string prior;      ///< initial pose prior YAML
-  std::string poses_out;  ///< trajectory CSV of published poses
+  std::string camera;          ///< camera calibration YAML
+  std::string model;           ///< line model YAML / DXF
+  std::string prior;           ///< initial pose prior YAML
+  std::string poses_out;       ///< trajectory CSV of published poses
+  std::string ground_truth;    ///< trajectory CSV to compare the poses with (ATE in the summary); replay only
+  int lost_after_windows = 3;  ///< consecutive unhealthy tracking updates before the track is declared lost
+};
+
+struct LcmConfig {
+  bool enabled = true;                       ///< publish poses and statistics on LCM
+  std::string url;                           ///< LCM provider URL; empty = LCM's default ($LCM_DEFAULT_URL or udpm)
+  std::string pose_channel = "EVPIPE_POSE";  ///< channel of the pose messages
+  std::string stats_channel = "EVPIPE_STATS";
+  std::int64_t stats_period_ms = 1000;  ///< statistics message period
+};
+
+struct PipelineConfig {
+  std::int64_t source_queue_packets = 256;  ///< packets between the source and the denoise thread
+  std::int64_t pose_queue_windows = 2;      ///< windows waiting for the pose thread (live: the freshest win)
+  std::int64_t publish_queue = 64;          ///< poses waiting for the publish thread
 };
 
 struct RunConfig {
@@ -72,6 +88,8 @@ struct RunConfig {
   WindowConfig window;
   DenoiseConfig denoise;
   PoseFilesConfig pose;
+  LcmConfig lcm;
+  PipelineConfig pipeline;
 
   /// Checks ranges and consistency; throws ConfigError naming the key.
   void validate() const;

@@ -1,6 +1,10 @@
 #pragma once
 // The per-window pose state machine: initialise (OPnL with automatic correspondences) -> track (MM) -> on loss
-// re-initialise. One call per window of denoised events; no threads here.
+// re-initialise around the last good pose. One call per window of denoised events; no threads here.
+//
+//   initialising --init ok--> tracking --lost_after_windows unhealthy updates--> lost --init ok--> tracking
+//
+// While initialising or lost the estimate carries pose_valid = false and the last good pose (or the prior).
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
@@ -10,14 +14,28 @@
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/pose/types.hpp"
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <string>
 
 namespace evpipe::pose {
 
 struct EstimatorOptions {
   InitialiserOptions init;
   TrackerOptions track;
+  /// Consecutive unhealthy tracking updates before the track is declared lost (the pose is held meanwhile).
+  int lost_after_windows = 3;
+  /// Windows with fewer events are not worth an initialisation attempt (counted as a failed attempt).
+  std::size_t init_min_events = 200;
+  /// Re-initialisation after a loss searches around the last good pose with these tolerances.
+  double reinit_position_tolerance_m = 0.3;
+  double reinit_angle_tolerance_deg = 45.0;
+  /// Predict the next pose by constant velocity from the last two tracked poses (else: the last pose).
+  bool constant_velocity = true;
+
+  /// Throws std::invalid_argument naming the field when a value is out of range.
+  void validate() const;
 };
 
 /// The result of one window.
@@ -31,23 +49,47 @@ struct PoseEstimate {
   std::size_t window_events{0};
   std::size_t inliers{0};
   double sigma_px{0.0};
+  bool initialised_now{false};  ///< this window ran a successful (re-)initialisation
+  std::string note;             ///< why the pose is not valid / what happened (empty when tracking normally)
+};
+
+/// Counters over the estimator's life (for the run summary and the statistics message).
+struct EstimatorCounters {
+  std::uint64_t windows{0};
+  std::uint64_t init_attempts{0};
+  std::uint64_t init_successes{0};
+  std::uint64_t losses{0};  ///< tracking → lost transitions
+  std::uint64_t unhealthy_updates{0};
+  std::uint64_t windows_by_status[3]{0, 0, 0};  ///< indexed by TrackStatus
 };
 
 class PoseEstimator {
  public:
+  /// Throws std::invalid_argument when the options are invalid or the model has fewer than 4 segments.
   PoseEstimator(camera::CameraModel camera, camera::LineModel model, std::optional<camera::PosePrior> prior,
                 EstimatorOptions options = {});
-  /// One window of denoised events ending at t_end_us.
+  /// One window of denoised events ending at t_end_us (events time-ordered).
   PoseEstimate process(EventSpan window, std::int64_t t_end_us);
+  /// Forget the track (after a clock discontinuity or a device reconnect): next window initialises again.
+  void reset();
+
   [[nodiscard]] TrackStatus status() const noexcept { return status_; }
+  [[nodiscard]] const EstimatorCounters& counters() const noexcept { return counters_; }
 
  private:
+  PoseEstimate initialise(EventSpan window, std::int64_t t_end_us);
+  [[nodiscard]] camera::Pose predict(std::int64_t t_end_us) const;
+  void set_status(TrackStatus s);
+
   camera::CameraModel camera_;
   camera::LineModel model_;
   std::optional<camera::PosePrior> prior_;
   EstimatorOptions options_;
   TrackStatus status_{TrackStatus::initialising};
-  std::optional<camera::Pose> last_pose_;
+  std::optional<camera::StampedPose> last_;      ///< last good pose
+  std::optional<camera::StampedPose> previous_;  ///< the one before (for constant velocity)
+  int unhealthy_in_a_row_{0};
+  EstimatorCounters counters_;
 };
 
 }  // namespace evpipe::pose
