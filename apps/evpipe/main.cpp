@@ -28,6 +28,7 @@
 #include "evpipe/io/reader.hpp"
 #include "evpipe/pipeline/paced_source.hpp"
 #include "live.hpp"
+#include "pose_stage.hpp"
 #include "progress.hpp"
 #include "summary.hpp"
 
@@ -95,11 +96,16 @@ int run(const Cli& cli) {
     return 0;
   }
   spdlog::debug("effective configuration:\n{}", cfg.to_yaml());
-  for (const auto* path : {&cfg.pose.camera, &cfg.pose.model, &cfg.pose.prior, &cfg.pose.poses_out}) {
-    if (!path->empty()) {
-      std::fprintf(stderr,
-                   "evpipe: pose estimation (--camera/--model/--prior/--poses-out) is not part of this build yet; "
-                   "run without these options\n");
+  // The pose stage runs when a camera and a model are configured; a prior, an output CSV or ground truth
+  // without them is a configuration error (create() says which is missing).
+  std::unique_ptr<app::PoseStage> pose_stage;
+  const auto& pc = cfg.pose;
+  if (!pc.camera.empty() || !pc.model.empty() || !pc.prior.empty() || !pc.poses_out.empty() ||
+      !pc.ground_truth.empty()) {
+    try {
+      pose_stage = app::PoseStage::create(cfg);
+    } catch (const config::ConfigError& e) {
+      std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
       return 2;
     }
   }
@@ -153,9 +159,10 @@ int run(const Cli& cli) {
   std::optional<denoise::FilteredStream> denoised;
   if (filter) denoised.emplace(*filter);
   std::vector<EventBatch> kept;
-  TimeSlicer slicer({cfg.window.length_us, cfg.window.hop_us, std::nullopt}, [&summary](const EventWindow& w) {
+  TimeSlicer slicer({cfg.window.length_us, cfg.window.hop_us, std::nullopt}, [&](const EventWindow& w) {
     ++summary.windows;
     summary.window_events += w.size();
+    if (pose_stage) pose_stage->write(pose_stage->process(w));
   });
   app::ProgressBar progress(!cli.no_progress);
   const auto t_start = std::chrono::steady_clock::now();
@@ -195,6 +202,7 @@ int run(const Cli& cli) {
   summary.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   summary.info = source->info();
   summary.source = source->stats();
+  if (pose_stage) summary.pose = pose_stage->summary();
   if (denoised) {
     summary.denoise_in = denoised->events_in();
     summary.denoise_kept = denoised->events_kept();

@@ -4,6 +4,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <vector>
+
 namespace evpipe::app {
 
 namespace {
@@ -12,6 +15,24 @@ std::string rate(double hz) {
   if (hz >= 1e6) return fmt::format("{:.2f} Mev/s", hz / 1e6);
   if (hz >= 1e3) return fmt::format("{:.1f} kev/s", hz / 1e3);
   return fmt::format("{:.0f} ev/s", hz);
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+double share(std::uint64_t part, std::uint64_t whole) {
+  return whole ? static_cast<double>(part) / static_cast<double>(whole) : 0.0;
+}
+
+// Pose updates per second of sensor time between the first and the last valid pose.
+double update_rate_hz(const PoseSummary& p) {
+  const auto span_us = p.last_valid_t_us - p.first_valid_t_us;
+  return p.valid_poses > 1 && span_us > 0 ? 1e6 * static_cast<double>(p.valid_poses - 1) / static_cast<double>(span_us)
+                                          : 0.0;
 }
 
 }  // namespace
@@ -52,11 +73,41 @@ std::string format_text(const RunSummary& s) {
                      s.denoise_latency_us / 1000.0));
   line("windows", fmt::format("{} of {} ms, hop {} ms ({} events)", s.windows, s.window_us / 1000.0, s.hop_us / 1000.0,
                               s.window_events));
+  if (s.pose.enabled) {
+    const auto& p = s.pose;
+    line("poses",
+         fmt::format("{} valid of {} windows ({:.1f} Hz of sensor time)", p.valid_poses, p.windows, update_rate_hz(p)));
+    line("pose status",
+         fmt::format("initialising {:.1f} %, tracking {:.1f} %, lost {:.1f} %",
+                     100 * share(p.windows_by_status[0], p.windows), 100 * share(p.windows_by_status[1], p.windows),
+                     100 * share(p.windows_by_status[2], p.windows)));
+    line("initialisation", fmt::format("{} of {} attempts succeeded, {} losses; first took {:.1f} ms", p.init_successes,
+                                       p.init_attempts, p.losses, p.first_init_ms));
+    line("pose update", fmt::format("p50 {:.3f} ms, p99 {:.3f} ms compute per window", percentile(p.update_ms, 0.5),
+                                    percentile(p.update_ms, 0.99)));
+    if (p.valid_poses == 0 && !p.last_note.empty()) line("no pose", p.last_note);
+    if (!p.poses_out.empty()) line("poses written", p.poses_out);
+  }
   line("wall time",
        fmt::format("{:.3f} s ({})", s.wall_s, rate(s.wall_s > 0 ? static_cast<double>(st.events()) / s.wall_s : 0.0)));
   if (!s.error.empty()) line("error", s.error);
   return o;
 }
+
+namespace {
+std::string pose_json(const PoseSummary& p) {
+  if (!p.enabled) return ",\"pose_enabled\":false";
+  return fmt::format(
+      ",\"pose_enabled\":true,\"pose_windows\":{},\"pose_updates\":{},\"pose_rate_hz\":{:.3f},"
+      "\"pose_initialising_share\":{:.6f},\"pose_tracking_share\":{:.6f},\"pose_lost_share\":{:.6f},"
+      "\"pose_init_attempts\":{},\"pose_init_successes\":{},\"pose_losses\":{},\"pose_init_ms\":{:.3f},"
+      "\"pose_update_ms_p50\":{:.4f},\"pose_update_ms_p99\":{:.4f},\"pose_note\":{}",
+      p.windows, p.valid_poses, update_rate_hz(p), share(p.windows_by_status[0], p.windows),
+      share(p.windows_by_status[1], p.windows), share(p.windows_by_status[2], p.windows), p.init_attempts,
+      p.init_successes, p.losses, p.first_init_ms, percentile(p.update_ms, 0.5), percentile(p.update_ms, 0.99),
+      json_quote(p.last_note));
+}
+}  // namespace
 
 std::string format_json(const RunSummary& s) {
   const auto& st = *s.stream;
@@ -68,7 +119,7 @@ std::string format_json(const RunSummary& s) {
       "\"invalid_events\":{},\"corrupt_packets\":{},\"truncated_bytes\":{},\"dropped_packets\":{},"
       "\"dropped_events\":{},\"denoise_filter\":{},\"denoise_in\":{},\"denoise_kept\":{},"
       "\"denoise_latency_us\":{},\"windows\":{},\"window_events\":{},\"window_us\":{},\"hop_us\":{},"
-      "\"wall_s\":{:.6f},\"interrupted\":{},\"error\":{}}}\n",
+      "\"wall_s\":{:.6f},\"interrupted\":{},\"error\":{}{}}}\n",
       json_quote(s.info.name), s.info.format, s.info.geometry.width, s.info.geometry.height, s.info.geometry_known,
       st.events(), st.on_events(), st.first_t_us() ? fmt::format("{}", *st.first_t_us()) : "null",
       st.last_t_us() ? fmt::format("{}", *st.last_t_us()) : "null", st.duration_us(), st.mean_rate_hz(),
@@ -76,7 +127,7 @@ std::string format_json(const RunSummary& s) {
       s.source.discontinuities, s.source.skipped_non_dvs, s.source.invalid_events, s.source.corrupt_packets,
       s.source.truncated_bytes, s.source.dropped_packets, s.source.dropped_events, json_quote(s.denoise_filter),
       s.denoise_in, s.denoise_kept, s.denoise_latency_us, s.windows, s.window_events, s.window_us, s.hop_us, s.wall_s,
-      s.interrupted, json_quote(s.error));
+      s.interrupted, json_quote(s.error), pose_json(s.pose));
 }
 
 }  // namespace evpipe::app

@@ -6,6 +6,7 @@
 
 #include "evpipe/core/source.hpp"
 #include "evpipe/core/stream_stats.hpp"
+#include "pose_stage.hpp"
 
 namespace evpipe::app {
 
@@ -25,6 +26,7 @@ struct RunSummary {
   bool interrupted = false;
   std::string error;  ///< non-empty when the run stopped on an error
   bool out_of_order_dropped = true;
+  PoseSummary pose;
 };
 
 std::string format_text(const RunSummary& s);

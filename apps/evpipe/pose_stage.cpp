@@ -1,0 +1,88 @@
+#include "pose_stage.hpp"
+
+#include <fmt/format.h>
+
+#include "evpipe/camera/error.hpp"
+#include "evpipe/camera/prior.hpp"
+
+namespace evpipe::app {
+
+std::vector<std::string> pose_csv_extra_columns() {
+  return {"status", "inliers", "sigma_px"};
+}
+
+std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg) {
+  const auto& p = cfg.pose;
+  if (p.camera.empty() || p.model.empty())
+    throw config::ConfigError("pose: --camera and --model (pose.camera, pose.model) are both needed to estimate poses");
+  try {
+    auto cam = camera::load_camera(p.camera);
+    auto model = camera::load_line_model(p.model);
+    std::optional<camera::PosePrior> prior;
+    if (!p.prior.empty()) prior = camera::load_prior(p.prior);
+    pose::EstimatorOptions options;
+    options.lost_after_windows = p.lost_after_windows;
+    pose::PoseEstimator estimator(std::move(cam), std::move(model), std::move(prior), options);
+    std::optional<camera::TrajectoryCsvWriter> csv;
+    if (!p.poses_out.empty()) csv.emplace(p.poses_out, pose_csv_extra_columns());
+    return std::unique_ptr<PoseStage>(new PoseStage(std::move(estimator), std::move(csv), p.poses_out));
+  } catch (const camera::ModelError& e) {
+    throw config::ConfigError(e.what());
+  } catch (const std::invalid_argument& e) {
+    throw config::ConfigError(fmt::format("pose: {}", e.what()));
+  } catch (const std::runtime_error& e) {  // the CSV could not be created
+    throw config::ConfigError(fmt::format("pose: {}", e.what()));
+  }
+}
+
+PoseStage::PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv,
+                     std::string csv_path)
+    : estimator_(std::move(estimator)), csv_(std::move(csv)) {
+  summary_.enabled = true;
+  summary_.poses_out = std::move(csv_path);
+}
+
+pose::PoseEstimate PoseStage::process(const EventWindow& window) {
+  EventSpan events;
+  if (window.parts.size() == 1) {
+    events = window.parts.front();
+  } else {
+    scratch_.clear();
+    window.for_each([this](const Event& e) { scratch_.push_back(e); });
+    events = scratch_;
+  }
+  if (window.starts_segment && summary_.windows > 0) estimator_.reset();  // clock jumped: the track is stale
+  const auto t0 = std::chrono::steady_clock::now();
+  auto estimate = estimator_.process(events, window.t1_us);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  ++summary_.windows;
+  ++summary_.windows_by_status[static_cast<int>(estimate.status)];
+  if (estimate.initialised_now && summary_.first_init_ms == 0) summary_.first_init_ms = ms;
+  if (estimate.pose_valid) {
+    if (!estimate.initialised_now) summary_.update_ms.push_back(ms);
+    if (summary_.valid_poses == 0) summary_.first_valid_t_us = estimate.t_us;
+    summary_.last_valid_t_us = estimate.t_us;
+    ++summary_.valid_poses;
+  } else if (!estimate.note.empty()) {
+    summary_.last_note = estimate.note;
+  }
+  return estimate;
+}
+
+void PoseStage::write(const pose::PoseEstimate& e) {
+  if (!csv_ || !e.pose_valid) return;
+  const std::vector<std::string> extra = {std::string(pose::to_string(e.status)), fmt::format("{}", e.inliers),
+                                          fmt::format("{:.4f}", e.sigma_px)};
+  csv_->write({e.t_us, e.T_cam_model}, extra);
+}
+
+PoseSummary PoseStage::summary() const {
+  PoseSummary s = summary_;
+  const auto& c = estimator_.counters();
+  s.init_attempts = c.init_attempts;
+  s.init_successes = c.init_successes;
+  s.losses = c.losses;
+  return s;
+}
+
+}  // namespace evpipe::app
