@@ -159,4 +159,30 @@ std::string to_json(const StatsRecord& r, std::string_view channel) {
   return o;
 }
 
+std::string to_text(const PoseRecord& r, std::string_view channel) {
+  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
+  const Eigen::Vector3d& t = r.T_cam_model.t_cam_model_m;
+  return fmt::format(
+      "{} #{} t={:.6f} s {}{} t_m=[{:.4f} {:.4f} {:.4f}] q=[{:.5f} {:.5f} {:.5f} {:.5f}] inliers={}/{} "
+      "sigma={:.3f} px cov={} latency={} us{}",
+      channel, r.seq, static_cast<double>(r.t_us) * 1e-6, to_string(r.status), r.pose_valid ? "" : " (invalid)", t.x(),
+      t.y(), t.z(), q.qw, q.qx, q.qy, q.qz, r.inliers, r.window_events, r.sigma_px,
+      r.covariance_known ? "known" : "unknown", r.latency_us, r.source_connected ? "" : " SOURCE DISCONNECTED");
+}
+
+std::string to_text(const StatsRecord& r, std::string_view channel) {
+  std::string o =
+      fmt::format("{} #{} {} {} t={:.3f} s poses={} failures={} latency p50/p99={:.0f}/{:.0f} us", channel, r.seq,
+                  r.source, r.source_connected ? "connected" : "DISCONNECTED", static_cast<double>(r.t_us) * 1e-6,
+                  r.poses_published, r.publish_failures, r.latency_p50_us, r.latency_p99_us);
+  for (const StageStatsRecord& s : r.stages) {
+    fmt::format_to(std::back_inserter(o), " | {} in={} kept={} dropped={} p99={:.0f} us", s.name, s.events_in,
+                   s.events_kept, s.events_dropped, s.proc_p99_us);
+  }
+  for (const QueueStatsRecord& q : r.queues) {
+    fmt::format_to(std::back_inserter(o), " | {} {}/{} dropped={}", q.name, q.fill, q.capacity, q.dropped);
+  }
+  return o;
+}
+
 }  // namespace evpipe::transport
