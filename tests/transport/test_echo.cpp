@@ -1,9 +1,14 @@
 // evpipe-lcm-echo end to end (the real binary): an LCM log written by the publisher, live udpm in a private
-// network namespace, and a clear error for an unusable URL.
+// network namespace, and a clear error for an unusable URL. Also tools/lcm-spy.sh --check against the C++ types.
+#include "evpipe/pose_t.hpp"
+#include "evpipe/queue_stats_t.hpp"
+#include "evpipe/stage_stats_t.hpp"
+#include "evpipe/stats_t.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
 #include "evpipe_run.hpp"
 #include "lcm_net.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <signal.h>
@@ -139,3 +144,28 @@ TEST(LcmEcho, LiveOnUdpmLoopback) {
 
 }  // namespace
 }  // namespace evpipe::transport
+
+#if EVPIPE_HAVE_LCM_JAR
+namespace evpipe::transport {
+namespace {
+
+// The Java classes lcm-spy decodes with must be the same types as the C++ ones: equal LCM fingerprints.
+TEST(LcmSpy, JavaTypesHaveTheCppFingerprints) {
+  const fs::path dir = temp_dir("spy");
+  const auto r = run(std::string(EVPIPE_SOURCE_DIR) + "/tools/lcm-spy.sh --check --jar " + q(EVPIPE_LCMTYPES_JAR), dir);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const std::pair<const char*, std::int64_t> types[] = {{"evpipe.pose_t", evpipe::pose_t::getHash()},
+                                                        {"evpipe.stats_t", evpipe::stats_t::getHash()},
+                                                        {"evpipe.stage_stats_t", evpipe::stage_stats_t::getHash()},
+                                                        {"evpipe.queue_stats_t", evpipe::queue_stats_t::getHash()}};
+  for (const auto& [name, hash] : types) {
+    const std::string expect = fmt::format("{} fingerprint 0x{:016x} found by lcm-spy's type database", name,
+                                           static_cast<std::uint64_t>(hash));
+    EXPECT_NE(r.out.find(expect), std::string::npos) << "expected '" << expect << "' in:\n" << r.out;
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace evpipe::transport
+#endif
