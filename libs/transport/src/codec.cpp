@@ -1,0 +1,221 @@
+#include "evpipe/transport/codec.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+
+namespace evpipe::transport {
+
+namespace {
+
+std::int32_t count_i32(std::size_t n, const char* field) {
+  if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+    throw std::length_error(fmt::format("stats_t.{}: {} entries do not fit an int32 count", field, n));
+  }
+  return static_cast<std::int32_t>(n);
+}
+
+TrackingStatus status_from_wire(std::int8_t v, const char* type) {
+  switch (v) {
+    case evpipe::pose_t::STATUS_INITIALISING:
+      return TrackingStatus::initialising;
+    case evpipe::pose_t::STATUS_TRACKING:
+      return TrackingStatus::tracking;
+    case evpipe::pose_t::STATUS_LOST:
+      return TrackingStatus::lost;
+    default:
+      throw DecodeError(fmt::format("{}.status: {} is not one of STATUS_INITIALISING/TRACKING/LOST (0/1/2)", type,
+                                    static_cast<int>(v)));
+  }
+}
+
+template <typename Msg>
+std::vector<std::uint8_t> encode_msg(const Msg& m) {
+  const int n = m.getEncodedSize();
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(n));
+  if (m.encode(out.data(), 0, n) != n) {
+    throw std::runtime_error("LCM encode failed");  // only on a size mismatch, i.e. a bug here
+  }
+  return out;
+}
+
+template <typename Msg>
+std::optional<Msg> decode_msg(const void* data, std::size_t size) {
+  if (data == nullptr || size < 8 || size > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
+    return std::nullopt;
+  }
+  Msg m;
+  // decode() checks the 8-byte fingerprint first and fails (< 0) on another type or truncated data.
+  if (m.decode(data, 0, static_cast<int>(size)) < 0) {
+    return std::nullopt;
+  }
+  return m;
+}
+
+}  // namespace
+
+evpipe::pose_t to_lcm(const PoseRecord& r) {
+  evpipe::pose_t m;
+  m.utime = r.utime_us;
+  m.t_us = r.t_us;
+  m.seq = r.seq;
+  m.camera_frame = r.camera_frame;
+  m.model_frame = r.model_frame;
+  m.status = static_cast<std::int8_t>(r.status);
+  m.pose_valid = r.pose_valid;
+  for (int i = 0; i < 3; ++i) {
+    m.position_m[i] = r.T_cam_model.t_cam_model_m[i];
+  }
+  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
+  m.orientation[0] = q.qw;
+  m.orientation[1] = q.qx;
+  m.orientation[2] = q.qy;
+  m.orientation[3] = q.qz;
+  m.covariance_known = r.covariance_known;
+  for (std::size_t i = 0; i < 36; ++i) {
+    m.covariance[i] = r.covariance_known ? r.covariance[i] : 0.0;
+  }
+  m.window_events = r.window_events;
+  m.inliers = r.inliers;
+  m.sigma_px = r.sigma_px;
+  m.latency_us = r.latency_us;
+  m.source_connected = r.source_connected;
+  return m;
+}
+
+PoseRecord from_lcm(const evpipe::pose_t& m) {
+  PoseRecord r;
+  r.utime_us = m.utime;
+  r.t_us = m.t_us;
+  r.seq = m.seq;
+  r.camera_frame = m.camera_frame;
+  r.model_frame = m.model_frame;
+  r.status = status_from_wire(m.status, "pose_t");
+  r.pose_valid = m.pose_valid != 0;
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(m.position_m[i])) {
+      throw DecodeError(fmt::format("pose_t.position_m[{}]: not finite", i));
+    }
+    r.T_cam_model.t_cam_model_m[i] = m.position_m[i];
+  }
+  try {
+    r.T_cam_model.q_cam_model =
+        camera::from_wire(m.orientation[0], m.orientation[1], m.orientation[2], m.orientation[3]);
+  } catch (const std::invalid_argument& e) {
+    throw DecodeError(fmt::format("pose_t.orientation (qw qx qy qz = {} {} {} {}): {}", m.orientation[0],
+                                  m.orientation[1], m.orientation[2], m.orientation[3], e.what()));
+  }
+  r.covariance_known = m.covariance_known != 0;
+  for (std::size_t i = 0; i < 36; ++i) {
+    r.covariance[i] = r.covariance_known ? m.covariance[i] : 0.0;
+  }
+  r.window_events = m.window_events;
+  r.inliers = m.inliers;
+  r.sigma_px = m.sigma_px;
+  r.latency_us = m.latency_us;
+  r.source_connected = m.source_connected != 0;
+  return r;
+}
+
+evpipe::stats_t to_lcm(const StatsRecord& r) {
+  evpipe::stats_t m;
+  m.utime = r.utime_us;
+  m.seq = r.seq;
+  m.interval_us = r.interval_us;
+  m.t_us = r.t_us;
+  m.uptime_us = r.uptime_us;
+  m.source = r.source;
+  m.source_connected = r.source_connected;
+  m.source_reconnects = r.source_reconnects;
+  m.status = static_cast<std::int8_t>(r.status);
+  m.poses_published = r.poses_published;
+  m.publish_failures = r.publish_failures;
+  m.latency_p50_us = r.latency_p50_us;
+  m.latency_p99_us = r.latency_p99_us;
+  m.num_stages = count_i32(r.stages.size(), "stages");
+  m.stages.reserve(r.stages.size());
+  for (const StageStatsRecord& s : r.stages) {
+    evpipe::stage_stats_t w;
+    w.name = s.name;
+    w.events_in = s.events_in;
+    w.events_kept = s.events_kept;
+    w.events_dropped = s.events_dropped;
+    w.packets_in = s.packets_in;
+    w.busy_us = s.busy_us;
+    w.proc_p50_us = s.proc_p50_us;
+    w.proc_p99_us = s.proc_p99_us;
+    w.proc_max_us = s.proc_max_us;
+    m.stages.push_back(std::move(w));
+  }
+  m.num_queues = count_i32(r.queues.size(), "queues");
+  m.queues.reserve(r.queues.size());
+  for (const QueueStatsRecord& q : r.queues) {
+    evpipe::queue_stats_t w;
+    w.name = q.name;
+    w.capacity = q.capacity;
+    w.fill = q.fill;
+    w.fill_max = q.fill_max;
+    w.pushed = q.pushed;
+    w.dropped = q.dropped;
+    m.queues.push_back(std::move(w));
+  }
+  return m;
+}
+
+StatsRecord from_lcm(const evpipe::stats_t& m) {
+  if (m.num_stages < 0 || static_cast<std::size_t>(m.num_stages) != m.stages.size()) {
+    throw DecodeError(fmt::format("stats_t.num_stages: {} but {} stages", m.num_stages, m.stages.size()));
+  }
+  if (m.num_queues < 0 || static_cast<std::size_t>(m.num_queues) != m.queues.size()) {
+    throw DecodeError(fmt::format("stats_t.num_queues: {} but {} queues", m.num_queues, m.queues.size()));
+  }
+  StatsRecord r;
+  r.utime_us = m.utime;
+  r.seq = m.seq;
+  r.interval_us = m.interval_us;
+  r.t_us = m.t_us;
+  r.uptime_us = m.uptime_us;
+  r.source = m.source;
+  r.source_connected = m.source_connected != 0;
+  r.source_reconnects = m.source_reconnects;
+  r.status = status_from_wire(m.status, "stats_t");
+  r.poses_published = m.poses_published;
+  r.publish_failures = m.publish_failures;
+  r.latency_p50_us = m.latency_p50_us;
+  r.latency_p99_us = m.latency_p99_us;
+  for (const evpipe::stage_stats_t& w : m.stages) {
+    r.stages.push_back({w.name, w.events_in, w.events_kept, w.events_dropped, w.packets_in, w.busy_us, w.proc_p50_us,
+                        w.proc_p99_us, w.proc_max_us});
+  }
+  for (const evpipe::queue_stats_t& w : m.queues) {
+    r.queues.push_back({w.name, w.capacity, w.fill, w.fill_max, w.pushed, w.dropped});
+  }
+  return r;
+}
+
+std::vector<std::uint8_t> encode(const PoseRecord& r) {
+  return encode_msg(to_lcm(r));
+}
+
+std::vector<std::uint8_t> encode(const StatsRecord& r) {
+  return encode_msg(to_lcm(r));
+}
+
+std::optional<PoseRecord> decode_pose(const void* data, std::size_t size) {
+  auto m = decode_msg<evpipe::pose_t>(data, size);
+  if (!m) {
+    return std::nullopt;
+  }
+  return from_lcm(*m);
+}
+
+std::optional<StatsRecord> decode_stats(const void* data, std::size_t size) {
+  auto m = decode_msg<evpipe::stats_t>(data, size);
+  if (!m) {
+    return std::nullopt;
+  }
+  return from_lcm(*m);
+}
+
+}  // namespace evpipe::transport

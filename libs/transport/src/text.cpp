@@ -1,0 +1,188 @@
+#include "evpipe/transport/text.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <iterator>
+
+namespace evpipe::transport {
+
+namespace {
+
+void put_str(std::string& out, std::string_view s) {
+  out += '"';
+  for (const char c : s) {
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          fmt::format_to(std::back_inserter(out), "\\u{:04x}", static_cast<unsigned>(c));
+        } else {
+          out += c;
+        }
+    }
+  }
+  out += '"';
+}
+
+void put_num(std::string& out, double v) {
+  if (std::isfinite(v)) {
+    fmt::format_to(std::back_inserter(out), "{}", v);
+  } else {
+    out += "null";  // JSON has no NaN / inf
+  }
+}
+
+template <typename T>
+void put_int(std::string& out, T v) {
+  fmt::format_to(std::back_inserter(out), "{}", v);
+}
+
+const char* boolean(bool b) {
+  return b ? "true" : "false";
+}
+
+}  // namespace
+
+std::string to_json(const PoseRecord& r, std::string_view channel) {
+  std::string o = "{\"channel\":";
+  put_str(o, channel);
+  o += ",\"type\":\"evpipe.pose_t\",\"utime\":";
+  put_int(o, r.utime_us);
+  o += ",\"t_us\":";
+  put_int(o, r.t_us);
+  o += ",\"seq\":";
+  put_int(o, r.seq);
+  o += ",\"camera_frame\":";
+  put_str(o, r.camera_frame);
+  o += ",\"model_frame\":";
+  put_str(o, r.model_frame);
+  o += ",\"status\":";
+  put_str(o, to_string(r.status));
+  fmt::format_to(std::back_inserter(o), ",\"pose_valid\":{},\"position_m\":[", boolean(r.pose_valid));
+  for (int i = 0; i < 3; ++i) {
+    if (i) o += ',';
+    put_num(o, r.T_cam_model.t_cam_model_m[i]);
+  }
+  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
+  o += "],\"orientation\":[";
+  put_num(o, q.qw);
+  o += ',';
+  put_num(o, q.qx);
+  o += ',';
+  put_num(o, q.qy);
+  o += ',';
+  put_num(o, q.qz);
+  fmt::format_to(std::back_inserter(o), "],\"covariance_known\":{},\"covariance\":", boolean(r.covariance_known));
+  if (r.covariance_known) {
+    o += '[';
+    for (std::size_t i = 0; i < r.covariance.size(); ++i) {
+      if (i) o += ',';
+      put_num(o, r.covariance[i]);
+    }
+    o += ']';
+  } else {
+    o += "null";
+  }
+  o += ",\"window_events\":";
+  put_int(o, r.window_events);
+  o += ",\"inliers\":";
+  put_int(o, r.inliers);
+  o += ",\"sigma_px\":";
+  put_num(o, r.sigma_px);
+  o += ",\"latency_us\":";
+  put_int(o, r.latency_us);
+  fmt::format_to(std::back_inserter(o), ",\"source_connected\":{}}}", boolean(r.source_connected));
+  return o;
+}
+
+std::string to_json(const StatsRecord& r, std::string_view channel) {
+  std::string o = "{\"channel\":";
+  put_str(o, channel);
+  o += ",\"type\":\"evpipe.stats_t\",\"utime\":";
+  put_int(o, r.utime_us);
+  o += ",\"seq\":";
+  put_int(o, r.seq);
+  o += ",\"interval_us\":";
+  put_int(o, r.interval_us);
+  o += ",\"t_us\":";
+  put_int(o, r.t_us);
+  o += ",\"uptime_us\":";
+  put_int(o, r.uptime_us);
+  o += ",\"source\":";
+  put_str(o, r.source);
+  fmt::format_to(std::back_inserter(o),
+                 ",\"source_connected\":{},\"source_reconnects\":{},\"status\":", boolean(r.source_connected),
+                 r.source_reconnects);
+  put_str(o, to_string(r.status));
+  fmt::format_to(std::back_inserter(o),
+                 ",\"poses_published\":{},\"publish_failures\":{},\"latency_p50_us\":", r.poses_published,
+                 r.publish_failures);
+  put_num(o, r.latency_p50_us);
+  o += ",\"latency_p99_us\":";
+  put_num(o, r.latency_p99_us);
+  o += ",\"stages\":[";
+  for (std::size_t i = 0; i < r.stages.size(); ++i) {
+    const StageStatsRecord& s = r.stages[i];
+    if (i) o += ',';
+    o += "{\"name\":";
+    put_str(o, s.name);
+    fmt::format_to(std::back_inserter(o),
+                   ",\"events_in\":{},\"events_kept\":{},\"events_dropped\":{},\"packets_in\":{},\"busy_us\":{}",
+                   s.events_in, s.events_kept, s.events_dropped, s.packets_in, s.busy_us);
+    o += ",\"proc_p50_us\":";
+    put_num(o, s.proc_p50_us);
+    o += ",\"proc_p99_us\":";
+    put_num(o, s.proc_p99_us);
+    o += ",\"proc_max_us\":";
+    put_num(o, s.proc_max_us);
+    o += '}';
+  }
+  o += "],\"queues\":[";
+  for (std::size_t i = 0; i < r.queues.size(); ++i) {
+    const QueueStatsRecord& q = r.queues[i];
+    if (i) o += ',';
+    o += "{\"name\":";
+    put_str(o, q.name);
+    fmt::format_to(std::back_inserter(o), ",\"capacity\":{},\"fill\":{},\"fill_max\":{},\"pushed\":{},\"dropped\":{}}}",
+                   q.capacity, q.fill, q.fill_max, q.pushed, q.dropped);
+  }
+  o += "]}";
+  return o;
+}
+
+std::string to_text(const PoseRecord& r, std::string_view channel) {
+  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
+  const Eigen::Vector3d& t = r.T_cam_model.t_cam_model_m;
+  return fmt::format(
+      "{} #{} t={:.6f} s {}{} t_m=[{:.4f} {:.4f} {:.4f}] q=[{:.5f} {:.5f} {:.5f} {:.5f}] inliers={}/{} "
+      "sigma={:.3f} px cov={} latency={} us{}",
+      channel, r.seq, static_cast<double>(r.t_us) * 1e-6, to_string(r.status), r.pose_valid ? "" : " (invalid)", t.x(),
+      t.y(), t.z(), q.qw, q.qx, q.qy, q.qz, r.inliers, r.window_events, r.sigma_px,
+      r.covariance_known ? "known" : "unknown", r.latency_us, r.source_connected ? "" : " SOURCE DISCONNECTED");
+}
+
+std::string to_text(const StatsRecord& r, std::string_view channel) {
+  std::string o =
+      fmt::format("{} #{} {} {} t={:.3f} s poses={} failures={} latency p50/p99={:.0f}/{:.0f} us", channel, r.seq,
+                  r.source, r.source_connected ? "connected" : "DISCONNECTED", static_cast<double>(r.t_us) * 1e-6,
+                  r.poses_published, r.publish_failures, r.latency_p50_us, r.latency_p99_us);
+  for (const StageStatsRecord& s : r.stages) {
+    fmt::format_to(std::back_inserter(o), " | {} in={} kept={} dropped={} p99={:.0f} us", s.name, s.events_in,
+                   s.events_kept, s.events_dropped, s.proc_p99_us);
+  }
+  for (const QueueStatsRecord& q : r.queues) {
+    fmt::format_to(std::back_inserter(o), " | {} {}/{} dropped={}", q.name, q.fill, q.capacity, q.dropped);
+  }
+  return o;
+}
+
+}  // namespace evpipe::transport

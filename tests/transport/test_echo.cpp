@@ -1,0 +1,171 @@
+// evpipe-lcm-echo end to end (the real binary): an LCM log written by the publisher, live udpm in a private
+// network namespace, and a clear error for an unusable URL. Also tools/lcm-spy.sh --check against the C++ types.
+#include "evpipe/pose_t.hpp"
+#include "evpipe/queue_stats_t.hpp"
+#include "evpipe/stage_stats_t.hpp"
+#include "evpipe/stats_t.hpp"
+#include "evpipe/transport/lcm_publisher.hpp"
+#include "evpipe_run.hpp"
+#include "lcm_net.hpp"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <sstream>
+#include <thread>
+
+namespace evpipe::transport {
+namespace {
+
+namespace fs = std::filesystem;
+using evpipe::testing::q;
+using evpipe::testing::run;
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("evpipe_echo_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+std::vector<std::string> lines(const std::string& s) {
+  std::vector<std::string> out;
+  std::istringstream in(s);
+  for (std::string l; std::getline(in, l);) {
+    out.push_back(l);
+  }
+  return out;
+}
+
+PoseRecord pose_at(std::int64_t t_us) {
+  PoseRecord r;
+  r.t_us = t_us;
+  r.status = TrackingStatus::lost;
+  r.T_cam_model.t_cam_model_m = {0.5, 0.25, 3.0};
+  return r;
+}
+
+TEST(LcmEcho, PrintsALogAsJsonLines) {
+  const fs::path dir = temp_dir("log");
+  const fs::path log = dir / "x.lcmlog";
+  {
+    LcmPublisher pub("file://" + log.string() + "?mode=w");
+    for (int k = 0; k < 4; ++k) {
+      ASSERT_TRUE(pub.publish_pose(pose_at(1000 * k)));
+    }
+    StatsRecord s;
+    s.queues = {{"source->denoise", 64, 1, 2, 3, 4}};
+    ASSERT_TRUE(pub.publish_stats(s));
+  }
+  const auto r = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log " + q(log.string()), dir);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto l = lines(r.out);
+  ASSERT_EQ(l.size(), 5U) << r.out;
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(l[k].rfind("{\"channel\":\"EVPIPE_POSE\",\"type\":\"evpipe.pose_t\"", 0), 0U) << l[k];
+    EXPECT_NE(l[k].find("\"seq\":" + std::to_string(k) + ","), std::string::npos) << l[k];
+    EXPECT_NE(l[k].find("\"t_us\":" + std::to_string(1000 * k) + ","), std::string::npos) << l[k];
+    EXPECT_NE(l[k].find("\"status\":\"lost\""), std::string::npos) << l[k];
+    EXPECT_NE(l[k].find("\"position_m\":[0.5,0.25,3]"), std::string::npos) << l[k];
+  }
+  EXPECT_NE(l[4].find("\"type\":\"evpipe.stats_t\""), std::string::npos) << l[4];
+  EXPECT_NE(l[4].find("\"poses_published\":4,"), std::string::npos) << l[4];
+  EXPECT_NE(l[4].find("\"name\":\"source->denoise\""), std::string::npos) << l[4];
+
+  const auto t = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --text --count 2 --log " + q(log.string()), dir);
+  ASSERT_EQ(t.status, 0) << t.err;
+  const auto tl = lines(t.out);
+  ASSERT_EQ(tl.size(), 2U) << t.out;
+  EXPECT_EQ(tl[1].rfind("EVPIPE_POSE #1 t=0.001000 s lost (invalid) t_m=[0.5000 0.2500 3.0000]", 0), 0U) << tl[1];
+  fs::remove_all(dir);
+}
+
+TEST(LcmEcho, BadUrlOrMissingLogExitsNonZeroWithOneLineReason) {
+  const fs::path dir = temp_dir("bad");
+  const auto r = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --url 'udpm://300.1.2.3:7667?ttl=0' --timeout 1", dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("evpipe-lcm-echo: cannot open LCM on udpm://300.1.2.3:7667?ttl=0"), std::string::npos) << r.err;
+  const auto m = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log /nonexistent/a.lcmlog", dir);
+  EXPECT_EQ(m.status, 1);
+  EXPECT_EQ(m.err, "evpipe-lcm-echo: /nonexistent/a.lcmlog: cannot open as an LCM log file\n");
+  fs::remove_all(dir);
+}
+
+TEST(LcmEcho, LiveOnUdpmLoopback) {
+  const auto setup = evpipe::testing::ensure_multicast_route();
+  if (!setup.ok) {
+    GTEST_SKIP() << "udpm test skipped: " << setup.message;
+  }
+  const fs::path dir = temp_dir("live");
+  const std::string url = "udpm://239.255.76.67:" + std::to_string(20000 + ::getpid() % 20000) + "?ttl=0";
+  const fs::path out = dir / "out.txt";
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    const std::string cmd = std::string("exec ") + EVPIPE_LCM_ECHO_EXE + " --url " + q(url) +
+                            " --channel EVPIPE_POSE --count 3 --timeout 20 >" + q(out.string());
+    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // The echo subscribes at some point after it starts: publish until it has printed 3 poses and exited.
+  LcmPublisher pub(url);
+  ASSERT_EQ(pub.state(), PublisherState::connected) << pub.last_error();
+  int status = 0;
+  pid_t done = 0;
+  for (int k = 0; k < 2000 && done == 0; ++k) {
+    pub.publish_pose(pose_at(k));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    done = ::waitpid(child, &status, WNOHANG);
+  }
+  if (done == 0) {
+    ::kill(child, SIGKILL);
+    ::waitpid(child, &status, 0);
+    FAIL() << "evpipe-lcm-echo did not receive 3 poses";
+  }
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  const auto l = lines(evpipe::testing::slurp(out));
+  ASSERT_EQ(l.size(), 3U);
+  std::int64_t prev = -1;
+  for (const auto& line : l) {
+    const auto at = line.find("\"seq\":");
+    ASSERT_NE(at, std::string::npos) << line;
+    const std::int64_t seq = std::stoll(line.substr(at + 6));
+    EXPECT_EQ(seq, prev < 0 ? seq : prev + 1) << "consecutive poses expected on loopback";
+    prev = seq;
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace evpipe::transport
+
+#if EVPIPE_HAVE_LCM_JAR
+namespace evpipe::transport {
+namespace {
+
+// The Java classes lcm-spy decodes with must be the same types as the C++ ones: equal LCM fingerprints.
+TEST(LcmSpy, JavaTypesHaveTheCppFingerprints) {
+  const fs::path dir = temp_dir("spy");
+  const auto r = run(std::string(EVPIPE_SOURCE_DIR) + "/tools/lcm-spy.sh --check --jar " + q(EVPIPE_LCMTYPES_JAR), dir);
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  const std::pair<const char*, std::int64_t> types[] = {{"evpipe.pose_t", evpipe::pose_t::getHash()},
+                                                        {"evpipe.stats_t", evpipe::stats_t::getHash()},
+                                                        {"evpipe.stage_stats_t", evpipe::stage_stats_t::getHash()},
+                                                        {"evpipe.queue_stats_t", evpipe::queue_stats_t::getHash()}};
+  for (const auto& [name, hash] : types) {
+    const std::string expect = fmt::format("{} fingerprint 0x{:016x} found by lcm-spy's type database", name,
+                                           static_cast<std::uint64_t>(hash));
+    EXPECT_NE(r.out.find(expect), std::string::npos) << "expected '" << expect << "' in:\n" << r.out;
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace evpipe::transport
+#endif
