@@ -406,7 +406,7 @@ TEST(PipelineGraph, StopWithFullQueuesEndsWithinTheBound) {
   // Replay, lossless queues, a processor far too slow: every queue fills and the reader waits.
   const auto batches = synthetic(5, 5000, 1000);
   RecordingProcessor processor;
-  processor.delay = 50ms;
+  processor.delay = 20ms;
   processor.record = false;
   RecordingSink sink;
   PipelineOptions o;
@@ -415,6 +415,7 @@ TEST(PipelineGraph, StopWithFullQueuesEndsWithinTheBound) {
   o.batch_queue_capacity = 16;
   o.window_queue_capacity = 4;
   o.pose_queue_capacity = 4;
+  o.drain_timeout = 500ms;  // the drain would take seconds: it is cut short (bound = drain_timeout + one step)
   Pipeline p(std::make_unique<VectorSource>(batches), nullptr, processor, sink, o);
   p.start();
   ASSERT_TRUE(wait_until([&] {
