@@ -34,6 +34,17 @@ if [ "${EVPIPE_SKIP_ASAN:-0}" != 1 ]; then
     ctest --preset asan -j"$jobs"
 fi
 
+# ThreadSanitizer: only the executables with threads are built (keeps CI short); EVPIPE_SKIP_TSAN=1 skips it.
+# Add the name of any further threaded test executable / test-name pattern here.
+if [ "${EVPIPE_SKIP_TSAN:-0}" != 1 ]; then
+  stamp "build (tsan preset: ThreadSanitizer, threaded tests only)"
+  cmake --preset tsan >/dev/null
+  cmake --build --preset tsan -j"$jobs" --target test_pipeline
+  stamp "tests (tsan preset: pipeline queues, stage loop, graph)"
+  TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
+    ctest --preset tsan -j"$jobs" -R '^(PacedSource|SpscRing|NamedQueue|Histogram|StageRunner|PipelineGraph)\.'
+fi
+
 if [ "${EVPIPE_SKIP_FUZZ:-0}" != 1 ]; then
   stamp "fuzzing every reader (${EVPIPE_FUZZ_SECONDS:-20} s each)"
   bash tools/run_fuzzers.sh "${EVPIPE_FUZZ_SECONDS:-20}"

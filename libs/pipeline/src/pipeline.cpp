@@ -1,0 +1,550 @@
+#include "evpipe/pipeline/pipeline.hpp"
+
+#include <algorithm>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "evpipe/denoise/filtered_stream.hpp"
+#include "evpipe/device/davis_source.hpp"
+#include "evpipe/pipeline/paced_source.hpp"
+
+namespace evpipe::pipeline {
+
+std::string_view state_name(SourceState state) noexcept {
+  switch (state) {
+    case SourceState::starting:
+      return "starting";
+    case SourceState::running:
+      return "running";
+    case SourceState::lost:
+      return "lost";
+    case SourceState::ended:
+      return "ended";
+    case SourceState::stopped:
+      return "stopped";
+    case SourceState::failed:
+      return "failed";
+  }
+  return "?";
+}
+
+namespace {
+
+using detail::bump;
+
+/// What the source thread hands on: the shared batch and when it was read.
+struct SourcePacket {
+  EventBatchPtr batch;
+  Clock::time_point read_at{};
+};
+
+/// What the denoise thread hands on.
+struct WindowItem {
+  EventWindow window;
+  std::uint64_t index = 0;
+  Clock::time_point newest_event_read{};
+  Clock::time_point ready{};
+};
+
+std::uint64_t to_ns(Clock::duration d) {
+  return static_cast<std::uint64_t>(
+      std::max<std::int64_t>(0, std::chrono::duration_cast<std::chrono::nanoseconds>(d).count()));
+}
+
+/// Maps a window's newest event to the host time its input batch was read. Keeps one record per input batch of the
+/// current clock segment, pruned as windows move on. Clock segments (restarted at discontinuities) are matched by
+/// the slicer's starts_segment flag; a window whose event is in no record (never expected) gets the latest read.
+class ReadTimes {
+ public:
+  void note(const SourcePacket& p) {
+    const auto& ev = p.batch->events;
+    if (p.batch->discontinuity_before && !records_.empty()) ++input_segment_;
+    records_.push_back({input_segment_, ev.front().t_us, ev.back().t_us, p.read_at});
+    latest_ = p.read_at;
+    if (records_.size() > kMaxRecords) records_.pop_front();  // bound memory if windows stop coming
+  }
+
+  Clock::time_point lookup(const EventWindow& w, bool first_window) {
+    const std::int64_t newest_t = w.parts.back().back().t_us;
+    if (w.starts_segment && !first_window) {
+      // The window opens a new clock segment: the next segment holding its newest event.
+      std::uint64_t seg = input_segment_;
+      for (const auto& r : records_) {
+        if (r.segment > window_segment_ && r.first_t <= newest_t && newest_t <= r.last_t) {
+          seg = r.segment;
+          break;
+        }
+      }
+      window_segment_ = seg;
+    }
+    while (!records_.empty() && records_.front().segment < window_segment_) records_.pop_front();
+    Clock::time_point t = latest_;
+    for (const auto& r : records_) {
+      if (r.segment != window_segment_) break;
+      if (r.last_t >= newest_t) {
+        t = r.read_at;
+        break;
+      }
+    }
+    // Later windows of this segment start at or after w.t0_us: batches ending before it are not needed again.
+    while (!records_.empty() && records_.front().segment == window_segment_ && records_.front().last_t < w.t0_us) {
+      records_.pop_front();
+    }
+    return t;
+  }
+
+ private:
+  struct Record {
+    std::uint64_t segment;
+    std::int64_t first_t;
+    std::int64_t last_t;
+    Clock::time_point read_at;
+  };
+  static constexpr std::size_t kMaxRecords = 1 << 16;
+  std::deque<Record> records_;
+  std::uint64_t input_segment_ = 0;
+  std::uint64_t window_segment_ = 0;
+  Clock::time_point latest_{};
+};
+
+class DenoiseStage final : public Stage<SourcePacket> {
+ public:
+  DenoiseStage(denoise::Filter* filter, const PipelineOptions& o, NamedQueue<WindowItem>& out, StageMetrics& m)
+      : out_(out), m_(m), slicer_({o.window_us, o.hop_us, std::nullopt}, [this](const EventWindow& w) { emit(w); }) {
+    if (filter) stream_.emplace(*filter);
+  }
+
+  void step(SourcePacket&& p) override {
+    bump(m_.events_in, p.batch->size());
+    read_times_.note(p);
+    if (stream_) {
+      kept_.clear();
+      stream_->push(p.batch, kept_);
+      for (auto& b : kept_) accept(std::make_shared<const EventBatch>(std::move(b)));
+    } else {
+      accept(p.batch);
+    }
+  }
+
+  void finish() override {
+    if (stream_) {
+      kept_.clear();
+      stream_->finish(kept_);
+      for (auto& b : kept_) accept(std::make_shared<const EventBatch>(std::move(b)));
+    }
+    slicer_.flush();
+  }
+
+  [[nodiscard]] std::uint64_t windows() const noexcept { return windows_.load(std::memory_order_relaxed); }
+
+ private:
+  void accept(EventBatchPtr b) {
+    bump(m_.events_out, b->size());
+    slicer_.accept(b);
+  }
+
+  void emit(const EventWindow& w) {
+    WindowItem item{w, index_, read_times_.lookup(w, index_ == 0), Clock::now()};
+    ++index_;
+    bump(windows_);
+    switch (out_.push(std::move(item), &m_.wait)) {
+      case PushResult::pushed:
+      case PushResult::replaced:  // accepted; the queue counts the window it displaced
+        bump(m_.items_out);
+        break;
+      case PushResult::dropped:
+      case PushResult::stopped:
+        bump(m_.items_dropped);
+        bump(m_.events_dropped, w.size());
+        break;
+    }
+  }
+
+  NamedQueue<WindowItem>& out_;
+  StageMetrics& m_;
+  std::optional<denoise::FilteredStream> stream_;
+  TimeSlicer slicer_;
+  std::vector<EventBatch> kept_;
+  ReadTimes read_times_;
+  std::uint64_t index_ = 0;
+  std::atomic<std::uint64_t> windows_{0};
+};
+
+class PoseStage final : public Stage<WindowItem> {
+ public:
+  PoseStage(WindowProcessor& processor, NamedQueue<PoseSample>& out, StageMetrics& m)
+      : processor_(processor), out_(out), m_(m) {}
+
+  void step(WindowItem&& w) override {
+    const std::size_t n = w.window.size();
+    bump(m_.events_in, n);
+    PoseSample s;
+    s.estimate = processor_.process(w.window);
+    s.pose_done = Clock::now();
+    s.window_index = w.index;
+    s.window_t0_us = w.window.t0_us;
+    s.window_t1_us = w.window.t1_us;
+    s.window_events = n;
+    s.starts_segment = w.window.starts_segment;
+    s.newest_event_read = w.newest_event_read;
+    s.window_ready = w.ready;
+    bump(m_.events_out, n);
+    switch (out_.push(std::move(s), &m_.wait)) {
+      case PushResult::pushed:
+      case PushResult::replaced:
+        bump(m_.items_out);
+        break;
+      case PushResult::dropped:
+      case PushResult::stopped:
+        bump(m_.items_dropped);
+        break;
+    }
+  }
+
+ private:
+  WindowProcessor& processor_;
+  NamedQueue<PoseSample>& out_;
+  StageMetrics& m_;
+};
+
+}  // namespace
+
+struct Pipeline::Impl {
+  Impl(std::unique_ptr<EventSource> src, std::unique_ptr<denoise::Filter> flt, WindowProcessor& processor,
+       PoseSink& snk, PipelineOptions o)
+      : options(validated(o)),
+        source(std::move(src)),
+        filter(std::move(flt)),
+        sink(snk),
+        batches("batches", options.batch_queue_capacity,
+                options.mode == Mode::live ? QueuePolicy::drop_newest : QueuePolicy::block),
+        windows_q("windows", options.mode == Mode::live ? 1 : options.window_queue_capacity,
+                  options.mode == Mode::live ? QueuePolicy::latest_wins : QueuePolicy::block),
+        poses("poses", options.pose_queue_capacity,
+              options.mode == Mode::live ? QueuePolicy::drop_newest : QueuePolicy::block),
+        m_source("source"),
+        m_denoise("denoise"),
+        m_pose("pose"),
+        m_publish("publish"),
+        denoise_stage(filter.get(), options, windows_q, m_denoise),
+        pose_stage(processor, poses, m_pose),
+        publish_stage(*this) {
+    if (!source) throw std::invalid_argument("Pipeline: source is null");
+    pacer = dynamic_cast<PacedSource*>(source.get());
+    davis = dynamic_cast<device::DavisSource*>(source.get());
+    source_snapshot.counters = source->stats();
+    source_snapshot.progress = source->progress();
+  }
+
+  static PipelineOptions validated(PipelineOptions o) {
+    if (o.window_us <= 0) throw std::invalid_argument("Pipeline: window_us must be > 0");
+    if (o.hop_us <= 0) throw std::invalid_argument("Pipeline: hop_us must be > 0");
+    if (o.batch_queue_capacity == 0 || o.window_queue_capacity == 0 || o.pose_queue_capacity == 0) {
+      throw std::invalid_argument("Pipeline: queue capacities must be > 0");
+    }
+    if (o.idle_wait.count() <= 0) throw std::invalid_argument("Pipeline: idle_wait must be > 0");
+    return o;
+  }
+
+  class PublishStage final : public Stage<PoseSample> {
+   public:
+    explicit PublishStage(Impl& impl) : impl_(impl) {}
+    void step(PoseSample&& s) override {
+      bump(impl_.m_publish.events_in, s.window_events);
+      impl_.sink.publish_pose(s);
+      const auto now = Clock::now();  // publication = publish_pose() returned
+      impl_.latency_event.record(to_ns(now - s.newest_event_read));
+      impl_.latency_window.record(to_ns(now - s.window_ready));
+      bump(impl_.m_publish.items_out);
+      bump(impl_.m_publish.events_out, s.window_events);
+    }
+    void tick(Clock::time_point now) override {
+      if (now < next_stats_) return;
+      next_stats_ = now + impl_.options.stats_period;
+      impl_.sink.publish_stats(impl_.stats());
+    }
+
+   private:
+    Impl& impl_;
+    Clock::time_point next_stats_{};
+  };
+
+  void fail(const std::string& stage, const std::string& what) {
+    {
+      std::lock_guard lock(error_mu);
+      if (error.empty()) error = stage + ": " + what;
+    }
+    request_stop();  // upstream stops; downstream drains what it has (the failed stage closed its output)
+  }
+
+  void request_stop() noexcept {
+    if (!stop_requested.exchange(true)) cancel.request_at(Clock::now() + options.drain_timeout);
+    if (pacer) pacer->stop();
+    batches.interrupt_producer_async();
+  }
+
+  void set_source_state(SourceState s) {
+    std::lock_guard lock(source_mu);
+    if (s == SourceState::lost && source_snapshot.state != SourceState::lost) ++source_snapshot.lost_count;
+    source_snapshot.state = s;
+  }
+
+  void snapshot_source() {
+    SourceState s = SourceState::running;
+    std::uint64_t reconnects = 0;
+    if (davis) {
+      const auto ds = davis->state();
+      s = ds == device::DeviceState::connected      ? SourceState::running
+          : ds == device::DeviceState::disconnected ? SourceState::lost
+                                                    : SourceState::ended;
+      reconnects = davis->reconnects();
+    }
+    const auto& counters = source->stats();
+    const auto progress = source->progress();
+    std::lock_guard lock(source_mu);
+    if (s == SourceState::lost && source_snapshot.state != SourceState::lost) ++source_snapshot.lost_count;
+    source_snapshot.state = s;
+    source_snapshot.reconnects = reconnects;
+    source_snapshot.counters = counters;
+    source_snapshot.progress = progress;
+  }
+
+  void source_loop() {
+    StageMetrics& m = m_source;
+    m.state.store(StageState::running, std::memory_order_release);
+    StageState end = StageState::finished;
+    SourceState final_state = SourceState::ended;
+    try {
+      for (;;) {
+        bump(m.heartbeat);
+        if (stop_requested.load(std::memory_order_acquire)) {
+          final_state = SourceState::stopped;
+          break;
+        }
+        const auto t0 = Clock::now();
+        EventBatchPtr b = source->next();
+        const auto read_at = Clock::now();
+        snapshot_source();
+        if (!b) {
+          if (source->finished()) break;
+          std::this_thread::sleep_for(options.source_poll);  // live: nothing new yet
+          continue;
+        }
+        if (b->empty()) continue;
+        const std::size_t n = b->size();
+        bump(m.items_in);
+        bump(m.events_in, n);
+        m.step_ns.record(to_ns(read_at - t0));
+        switch (batches.push(SourcePacket{std::move(b), read_at}, &m.wait, options.idle_wait)) {
+          case PushResult::pushed:
+          case PushResult::replaced:
+            bump(m.items_out);
+            bump(m.events_out, n);
+            break;
+          case PushResult::dropped:
+          case PushResult::stopped:
+            bump(m.items_dropped);
+            bump(m.events_dropped, n);
+            break;
+        }
+      }
+      if (stop_requested.load(std::memory_order_acquire)) final_state = SourceState::stopped;
+    } catch (const std::exception& e) {
+      end = StageState::failed;
+      final_state = SourceState::failed;
+      fail("source", e.what());
+    } catch (...) {
+      end = StageState::failed;
+      final_state = SourceState::failed;
+      fail("source", "unknown exception");
+    }
+    set_source_state(final_state);
+    m.state.store(end, std::memory_order_release);
+    batches.close();
+  }
+
+  void thread_done() {
+    {
+      std::lock_guard lock(done_mu);
+      ++threads_done;
+    }
+    done_cv.notify_all();
+  }
+
+  PipelineStats stats() const {
+    PipelineStats s;
+    const auto t0 = t_start_ns.load(std::memory_order_acquire);
+    s.elapsed_s =
+        t0 == 0 ? 0.0 : std::chrono::duration<double>(Clock::now() - Clock::time_point(Clock::duration(t0))).count();
+    {
+      std::lock_guard lock(source_mu);
+      s.source = source_snapshot;
+    }
+    for (const StageMetrics* m : {&m_source, &m_denoise, &m_pose, &m_publish}) s.stages.push_back(m->snapshot());
+    s.queues = {batches.stats(), windows_q.stats(), poses.stats()};
+    s.windows = denoise_stage.windows();
+    s.denoise_events_in = s.stages[1].events_in;
+    s.denoise_events_kept = s.stages[1].events_out;
+    s.poses_published = s.stages[3].items_out;
+    s.latency_event_to_publish_ns = latency_event.summary();
+    s.latency_window_to_publish_ns = latency_window.summary();
+    {
+      std::lock_guard lock(done_mu);
+      s.running = started.load() && threads_done < 4;
+    }
+    {
+      std::lock_guard lock(error_mu);
+      s.error = error;
+    }
+    return s;
+  }
+
+  const PipelineOptions options;
+  std::unique_ptr<EventSource> source;
+  std::unique_ptr<denoise::Filter> filter;
+  PoseSink& sink;
+  PacedSource* pacer = nullptr;
+  device::DavisSource* davis = nullptr;
+
+  NamedQueue<SourcePacket> batches;
+  NamedQueue<WindowItem> windows_q;
+  NamedQueue<PoseSample> poses;
+  StageMetrics m_source;
+  StageMetrics m_denoise;
+  StageMetrics m_pose;
+  StageMetrics m_publish;
+  DenoiseStage denoise_stage;
+  PoseStage pose_stage;
+  PublishStage publish_stage;
+  Histogram latency_event;   // written by the publish thread
+  Histogram latency_window;  // written by the publish thread
+
+  CancelDeadline cancel;
+  std::atomic<bool> stop_requested{false};
+  std::atomic<bool> started{false};
+  std::atomic<Clock::rep> t_start_ns{0};  // 0 = not started
+
+  mutable std::mutex source_mu;
+  SourceHealth source_snapshot;
+  mutable std::mutex error_mu;
+  std::string error;
+  mutable std::mutex done_mu;
+  std::condition_variable done_cv;
+  int threads_done = 0;
+
+  std::thread source_thread;
+  std::unique_ptr<StageRunner<SourcePacket>> denoise_runner;
+  std::unique_ptr<StageRunner<WindowItem>> pose_runner;
+  std::unique_ptr<StageRunner<PoseSample>> publish_runner;
+};
+
+Pipeline::Pipeline(std::unique_ptr<EventSource> source, std::unique_ptr<denoise::Filter> filter,
+                   WindowProcessor& processor, PoseSink& sink, PipelineOptions options)
+    : impl_(std::make_unique<Impl>(std::move(source), std::move(filter), processor, sink, options)) {}
+
+Pipeline::~Pipeline() {
+  if (impl_->started.load()) {
+    impl_->cancel.request_now();
+    stop();
+    join();
+  }
+}
+
+void Pipeline::start() {
+  Impl& s = *impl_;
+  if (s.started.exchange(true)) throw std::logic_error("Pipeline::start called twice");
+  s.t_start_ns.store(Clock::now().time_since_epoch().count(), std::memory_order_release);
+  auto on_error = [&s](const std::string& stage, const std::string& what) { s.fail(stage, what); };
+  s.denoise_runner = std::make_unique<StageRunner<SourcePacket>>(s.m_denoise, s.batches, s.denoise_stage, s.cancel,
+                                                                 StageRunner<SourcePacket>::Hooks{[&s] {
+                                                                                                    s.windows_q.close();
+                                                                                                    s.thread_done();
+                                                                                                  },
+                                                                                                  on_error},
+                                                                 s.options.idle_wait);
+  s.pose_runner = std::make_unique<StageRunner<WindowItem>>(s.m_pose, s.windows_q, s.pose_stage, s.cancel,
+                                                            StageRunner<WindowItem>::Hooks{[&s] {
+                                                                                             s.poses.close();
+                                                                                             s.thread_done();
+                                                                                           },
+                                                                                           on_error},
+                                                            s.options.idle_wait);
+  s.publish_runner = std::make_unique<StageRunner<PoseSample>>(
+      s.m_publish, s.poses, s.publish_stage, s.cancel,
+      StageRunner<PoseSample>::Hooks{[&s] {
+                                       // Final statistics: every stage has ended by now.
+                                       try {
+                                         auto final_stats = s.stats();
+                                         final_stats.running = false;  // every other thread has ended
+                                         s.sink.publish_stats(final_stats);
+                                       } catch (const std::exception& e) {
+                                         s.fail("publish", e.what());
+                                       }
+                                       s.thread_done();
+                                     },
+                                     on_error},
+      s.options.idle_wait);
+  s.set_source_state(SourceState::running);
+  // Consumers first, so that nothing waits on a queue without a reader.
+  s.publish_runner->start();
+  s.pose_runner->start();
+  s.denoise_runner->start();
+  s.source_thread = std::thread([&s] {
+    s.source_loop();
+    s.thread_done();
+  });
+}
+
+void Pipeline::request_stop() noexcept {
+  impl_->request_stop();
+}
+
+void Pipeline::stop() {
+  impl_->request_stop();
+  impl_->batches.interrupt_producer();
+}
+
+bool Pipeline::wait_for(std::chrono::nanoseconds timeout) {
+  Impl& s = *impl_;
+  if (!s.started.load()) return true;
+  std::unique_lock lock(s.done_mu);
+  return s.done_cv.wait_for(lock, timeout, [&s] { return s.threads_done >= 4; });
+}
+
+void Pipeline::join() {
+  Impl& s = *impl_;
+  if (!s.started.load()) return;
+  // Pipeline order: each thread ends after its upstream closed its input.
+  if (s.source_thread.joinable()) s.source_thread.join();
+  s.denoise_runner->join();
+  s.pose_runner->join();
+  s.publish_runner->join();
+}
+
+std::optional<std::string> Pipeline::run() {
+  start();
+  join();
+  return error();
+}
+
+PipelineStats Pipeline::stats() const {
+  return impl_->stats();
+}
+
+std::optional<std::string> Pipeline::error() const {
+  std::lock_guard lock(impl_->error_mu);
+  if (impl_->error.empty()) return std::nullopt;
+  return impl_->error;
+}
+
+const PipelineOptions& Pipeline::options() const noexcept {
+  return impl_->options;
+}
+const SourceInfo& Pipeline::source_info() const noexcept {
+  return impl_->source->info();
+}
+
+}  // namespace evpipe::pipeline
