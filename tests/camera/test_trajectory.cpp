@@ -183,5 +183,27 @@ TEST(TrajectoryInterpolation, MidpointsEndsAndOutside) {
   EXPECT_FALSE(interpolate(std::vector<StampedPose>{}, 0).has_value());
 }
 
+TEST(TrajectoryCsv, ExtraColumnByNameOneCellPerPoseRow) {
+  const std::string path = write_file("status.csv",
+                                      "# evpipe poses\n"
+                                      "t_us,x_m,y_m,z_m,qw,qx,qy,qz,status,inliers\n"
+                                      "10,0,0,1,1,0,0,0,initialising,0\n"
+                                      "\n"
+                                      "# a comment between rows\n"
+                                      "20,0,0,1,1,0,0,0, tracking ,412\r\n"
+                                      "30,0,0,1,1,0,0,0,lost,3\n");
+  const auto status = read_trajectory_column(path, "status");
+  ASSERT_TRUE(status);
+  EXPECT_EQ(*status, (std::vector<std::string>{"initialising", "tracking", "lost"}));
+  EXPECT_EQ(status->size(), read_trajectory_csv(path).size());
+  EXPECT_EQ(read_trajectory_column(path, "inliers")->at(1), "412");
+  EXPECT_FALSE(read_trajectory_column(path, "sigma_px"));
+  const std::string bad = write_file("status-short.csv", "t_us,x_m,y_m,z_m,qw,qx,qy,qz,status\n10,0,0,1,1,0,0,0\n");
+  EXPECT_EQ(model_error_message([&] { (void)read_trajectory_column(bad, "status"); }),
+            bad + ": line 2: 8 cells, but the header has 9 columns");
+  EXPECT_THAT(model_error_message([] { (void)read_trajectory_column("/nonexistent/t.csv", "status"); }),
+              HasSubstr("/nonexistent/t.csv: cannot open"));
+}
+
 }  // namespace
 }  // namespace evpipe::camera

@@ -146,6 +146,37 @@ std::vector<StampedPose> read_trajectory_csv(const std::string& path) {
   return out;
 }
 
+std::optional<std::vector<std::string>> read_trajectory_column(const std::string& path, std::string_view column) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ModelError(path, "", fmt::format("cannot open: {}", std::strerror(errno)));
+  BoundedLineReader reader(in, path);
+  std::string line;
+  bool have_header = false;
+  while (reader.next(line)) {
+    if (!skippable(line)) {
+      have_header = true;
+      break;
+    }
+  }
+  if (!have_header) throw ModelError(path, "", "empty file: no header line t_us,x_m,y_m,z_m,qw,qx,qy,qz");
+  const std::string header_text(detail::strip_bom(line));
+  const std::vector<std::string_view> header = split_cells(header_text);
+  const auto it = std::find(header.begin(), header.end(), column);
+  if (it == header.end()) return std::nullopt;
+  const auto index = static_cast<std::size_t>(it - header.begin());
+  std::vector<std::string> out;
+  while (reader.next(line)) {
+    if (skippable(line)) continue;
+    const std::vector<std::string_view> cells = split_cells(line);
+    if (cells.size() != header.size()) {
+      throw ModelError(path, fmt::format("line {}", reader.line_no()),
+                       fmt::format("{} cells, but the header has {} columns", cells.size(), header.size()));
+    }
+    out.emplace_back(cells[index]);
+  }
+  return out;
+}
+
 namespace {
 
 /// "qw,qx,qy,qz" with 9 decimals. read_trajectory_csv() normalises the quaternion it parses, and the rounding to 9

@@ -28,6 +28,13 @@ inline constexpr std::array<std::string_view, 8> kTrajectoryColumns = {"t_us", "
 ///         "traj.csv: line 1: missing column qw".
 [[nodiscard]] std::vector<StampedPose> read_trajectory_csv(const std::string& path);
 
+/// The cells of one extra column (e.g. evpipe's "status") of a trajectory CSV, one per pose row, in the order
+/// read_trajectory_csv() returns the rows (same skipped lines), trimmed; nullopt when the header has no such
+/// column. Only the row structure is checked (cell counts), not the pose cells: read_trajectory_csv() does that.
+/// @throws ModelError naming the file and line, like read_trajectory_csv().
+[[nodiscard]] std::optional<std::vector<std::string>> read_trajectory_column(const std::string& path,
+                                                                             std::string_view column);
+
 /// Writes a trajectory CSV: header t_us,x_m,y_m,z_m,qw,qx,qy,qz[,extra...], then one row per write():
 /// t_us as an integer, positions with 6 decimals (1 µm), quaternion (unit, qw >= 0) with 9 decimals, chosen (in
 /// the last digit) so that write → read_trajectory_csv() → write gives the same bytes.
