@@ -1,14 +1,15 @@
-// evpipe: DAVIS346 event stream → denoise → (pose → LCM, in later stages). This version replays a recording
-// or reads the live camera, denoises it with the configured filter (the paper's curvature filter by default),
-// cuts the kept events into windows and prints a summary.
+// evpipe: DAVIS346 event stream (live over USB, or a replayed recording) → denoise (the paper's curvature filter
+// by default) → 30 ms sliding windows → pose (OPnL initialisation, MM tracking) → LCM, one thread per stage
+// (libs/pipeline, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd; a summary at the end.
 //
 // Exit status: 0 success (also after SIGINT/SIGTERM), 1 runtime error (bad file, device), 2 usage or
 // configuration error.
 
-#include <spdlog/sinks/stdout_color_sinks.h>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -19,17 +20,23 @@
 #include <thread>
 #include <vector>
 
+#include "evpipe/camera/error.hpp"
+#include "evpipe/camera/trajectory.hpp"
 #include "evpipe/config/run_config.hpp"
 #include "evpipe/core/error.hpp"
-#include "evpipe/core/slicer.hpp"
-#include "evpipe/core/stream_stats.hpp"
-#include "evpipe/denoise/filtered_stream.hpp"
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
+#include "evpipe/metrics/trajectory.hpp"
 #include "evpipe/pipeline/paced_source.hpp"
+#include "evpipe/pipeline/pipeline.hpp"
+#include "evpipe/service/logging.hpp"
+#include "evpipe/service/notify.hpp"
+#include "evpipe/service/supervisor.hpp"
+#include "evpipe/transport/lcm_publisher.hpp"
 #include "live.hpp"
 #include "pose_stage.hpp"
 #include "progress.hpp"
+#include "sink.hpp"
 #include "summary.hpp"
 
 namespace {
@@ -38,10 +45,16 @@ std::atomic<bool> g_stop{false};
 // The paced replay source, so that a signal also ends its sleep (a silent stretch of a recording could
 // otherwise keep it asleep for as long as the silence lasts). Lock-free atomic stores are signal-safe.
 std::atomic<evpipe::pipeline::PacedSource*> g_paced{nullptr};
+// The running pipeline: a signal asks it to drain and stop (request_stop() only stores atomics).
+std::atomic<evpipe::pipeline::Pipeline*> g_pipeline{nullptr};
 extern "C" void on_signal(int /*sig*/) {
   g_stop.store(true);
   if (auto* p = g_paced.load()) p->stop();
+  if (auto* p = g_pipeline.load()) p->request_stop();
 }
+
+// The pipeline's stages in StageStats order (docs/architecture.md).
+constexpr std::array<std::string_view, 4> kStageNames = {"source", "denoise", "pose", "publish"};
 
 struct Cli {
   std::string config_path;
@@ -50,6 +63,9 @@ struct Cli {
   std::string camera, model, prior, poses_out;
   std::string log_level;
   std::string denoise;
+  std::string ground_truth;
+  std::optional<std::string> lcm_url;
+  bool no_lcm = false;
   bool json = false;
   bool no_progress = false;
   bool print_config = false;
@@ -72,6 +88,16 @@ evpipe::io::ReaderOptions reader_options(const evpipe::config::SourceConfig& s) 
   return o;
 }
 
+// The summary's accuracy block: ATE of the valid poses against the ground truth (replay only).
+void add_ate(evpipe::app::RunSummary& summary, const std::vector<evpipe::camera::StampedPose>& truth,
+             const std::vector<evpipe::camera::StampedPose>& poses) {
+  const auto eval = evpipe::metrics::evaluate_trajectory(poses, truth);
+  summary.ate_poses = eval.poses_evaluated;
+  if (eval.ate_mm) summary.ate_mm = *eval.ate_mm;
+  if (eval.rotation_deg) summary.rotation_deg = *eval.rotation_deg;
+  summary.ground_truth_given = true;
+}
+
 int run(const Cli& cli) {
   using namespace evpipe;
   config::RunConfig cfg;
@@ -83,9 +109,14 @@ int run(const Cli& cli) {
     if (!cli.model.empty()) cfg.pose.model = cli.model;
     if (!cli.prior.empty()) cfg.pose.prior = cli.prior;
     if (!cli.poses_out.empty()) cfg.pose.poses_out = cli.poses_out;
+    if (!cli.ground_truth.empty()) cfg.pose.ground_truth = cli.ground_truth;
     if (!cli.log_level.empty()) cfg.log.level = cli.log_level;
     if (!cli.denoise.empty()) cfg.denoise.filter = cli.denoise;
+    if (cli.lcm_url) cfg.lcm.url = *cli.lcm_url;
+    if (cli.no_lcm) cfg.lcm.enabled = false;
     cfg.validate();
+    if (!cfg.pose.ground_truth.empty() && cfg.source.replay.empty())
+      throw config::ConfigError("pose.ground_truth (--ground-truth): only for a replay (--replay)");
   } catch (const config::ConfigError& e) {
     std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
     return 2;
@@ -96,24 +127,31 @@ int run(const Cli& cli) {
     return 0;
   }
   spdlog::debug("effective configuration:\n{}", cfg.to_yaml());
+
   // The pose stage runs when a camera and a model are configured; a prior, an output CSV or ground truth
   // without them is a configuration error (create() says which is missing).
   std::unique_ptr<app::PoseStage> pose_stage;
+  std::vector<camera::StampedPose> truth;
   const auto& pc = cfg.pose;
   if (!pc.camera.empty() || !pc.model.empty() || !pc.prior.empty() || !pc.poses_out.empty() ||
       !pc.ground_truth.empty()) {
     try {
       pose_stage = app::PoseStage::create(cfg);
+      if (!pc.ground_truth.empty()) truth = camera::read_trajectory_csv(pc.ground_truth);
     } catch (const config::ConfigError& e) {
+      std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
+      return 2;
+    } catch (const camera::ModelError& e) {
       std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
       return 2;
     }
   }
 
+  const bool live = cfg.source.replay.empty();
   std::unique_ptr<EventSource> source;
   pipeline::PacedSource* paced = nullptr;
   try {
-    if (!cfg.source.replay.empty()) {
+    if (!live) {
       auto reader = io::open_reader(cfg.source.replay, reader_options(cfg.source));
       if (cfg.source.speed) {
         auto p = std::make_unique<pipeline::PacedSource>(std::move(reader), *cfg.source.speed);
@@ -139,73 +177,114 @@ int run(const Cli& cli) {
       return 2;
     }
   }
-  const bool live = cfg.source.replay.empty();
   spdlog::info("{} {} ({}, {}x{})", live ? "reading" : "replaying", source->info().name, source->info().format,
                source->info().geometry.width, source->info().geometry.height);
 
-  g_paced.store(paced);
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
+  // LCM: a missing multicast route is a degraded, retried state, never a reason not to run (operations.md).
+  std::unique_ptr<transport::LcmPublisher> publisher;
+  if (cfg.lcm.enabled) {
+    transport::LcmPublisherOptions lo;
+    lo.url = cfg.lcm.url;
+    lo.pose_channel = cfg.lcm.pose_channel;
+    lo.stats_channel = cfg.lcm.stats_channel;
+    publisher = std::make_unique<transport::LcmPublisher>(lo);
+    spdlog::info("LCM: {} on {} (poses) and {} (statistics){}", transport::effective_lcm_url(cfg.lcm.url),
+                 lo.pose_channel, lo.stats_channel,
+                 publisher->state() == transport::PublisherState::degraded
+                     ? " - not connected yet: " + publisher->last_error()
+                     : "");
+  }
 
-  StreamStats stream;
   app::RunSummary summary;
-  summary.stream = &stream;
   summary.window_us = cfg.window.length_us;
   summary.hop_us = cfg.window.hop_us;
   summary.out_of_order_dropped = cfg.source.drop_out_of_order;
   summary.denoise_filter = filter ? std::string(filter->name()) : "none";
   summary.denoise_latency_us = filter ? filter->latency_us() : 0;
-  // Denoise, then windows of the configured length and hop over the kept events (the pose stage plugs in here).
-  std::optional<denoise::FilteredStream> denoised;
-  if (filter) denoised.emplace(*filter);
-  std::vector<EventBatch> kept;
-  TimeSlicer slicer({cfg.window.length_us, cfg.window.hop_us, std::nullopt}, [&](const EventWindow& w) {
-    ++summary.windows;
-    summary.window_events += w.size();
-    if (pose_stage) pose_stage->write(pose_stage->process(w));
-  });
+
+  pipeline::PipelineOptions po;
+  po.mode = live ? pipeline::Mode::live : pipeline::Mode::replay;
+  po.window_us = cfg.window.length_us;
+  po.hop_us = cfg.window.hop_us;
+  po.batch_queue_capacity = static_cast<std::size_t>(cfg.pipeline.source_queue_packets);
+  po.window_queue_capacity = static_cast<std::size_t>(cfg.pipeline.pose_queue_windows);
+  po.pose_queue_capacity = static_cast<std::size_t>(cfg.pipeline.publish_queue);
+  po.stats_period = std::chrono::milliseconds(cfg.lcm.stats_period_ms);
+  app::PoseProcessor processor(pose_stage.get());
+  app::AppSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
+  pipeline::Pipeline pipe(std::move(source), std::move(filter), processor, sink, po);
+
+  g_paced.store(paced);
+  g_pipeline.store(&pipe);
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+
+  // systemd: READY once the threads run, STATUS= every second, WATCHDOG=1 only while every stage progresses.
+  service::SupervisorOptions so;
+  so.status = [&sink, &pose_stage]() {
+    const auto st = sink.latest_stats();
+    return st ? app::status_line(*st, sink.latest_status(), pose_stage != nullptr) : std::string("starting");
+  };
+  service::Supervisor supervisor(so);
+  for (std::size_t i = 0; i < 4; ++i) {
+    supervisor.watch(std::string(kStageNames[i]), [&pipe, i]() {
+      const auto st = pipe.stats();
+      return service::HeartbeatSample{i < st.stages.size() ? st.stages[i].heartbeat : 0, false};
+    });
+  }
+
   app::ProgressBar progress(!cli.no_progress);
   const auto t_start = std::chrono::steady_clock::now();
-  int status = 0;
-  try {
-    while (!g_stop.load()) {
-      auto batch = source->next();
-      if (!batch) {
-        if (source->finished()) break;
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));  // live: nothing new yet
-        continue;
-      }
-      stream.add(batch->span());
-      if (denoised) {
-        kept.clear();
-        denoised->push(batch, kept);
-        for (auto& b : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(b)));
-      } else {
-        slicer.accept(batch);
-      }
-      progress.update(source->progress(), stream.events(), stream.duration_us());
+  pipe.start();
+  supervisor.start();
+  service::ready(live ? "reading the camera" : "replaying " + cfg.source.replay);
+  while (!pipe.wait_for(std::chrono::milliseconds(100))) {
+    if (progress.active()) {
+      const auto st = pipe.stats();
+      std::string extra =
+          fmt::format("kept {:.1f} %", st.denoise_events_in ? 100.0 * static_cast<double>(st.denoise_events_kept) /
+                                                                  static_cast<double>(st.denoise_events_in)
+                                                            : 0.0);
+      if (pose_stage) extra += fmt::format("  pose {}", pose::to_string(sink.latest_status()));
+      progress.update(st.source.progress, st.source.counters.events, st.stream_time_us, extra);
     }
-    if (denoised) {
-      kept.clear();
-      denoised->finish(kept);
-      for (auto& b : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(b)));
-    }
-    slicer.flush();
-  } catch (const SourceError& e) {
-    progress.finish();
-    summary.error = e.what();
-    spdlog::error("{}", e.what());
-    status = 1;
   }
+  if (g_stop.load()) service::stopping();
+  pipe.join();
+  supervisor.stop();
+  g_pipeline.store(nullptr);
   progress.finish();
+
+  const auto stats = pipe.stats();
+  summary.stream = &pipe.stream_stats();
   summary.interrupted = g_stop.load();
   summary.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  summary.info = source->info();
-  summary.source = source->stats();
+  summary.info = pipe.source_info();
+  summary.source = pipe.source_stats();
+  summary.denoise_in = stats.denoise_events_in;
+  summary.denoise_kept = stats.denoise_events_kept;
+  summary.windows = stats.windows;
+  for (const auto& s : stats.stages)
+    if (s.name == "pose") summary.window_events = s.events_in;
+  for (const auto& q : stats.queues) summary.queue_drops.emplace_back(q.name, q.dropped);
+  summary.latency_event_ms_p50 = static_cast<double>(stats.latency_event_to_publish_ns.p50) / 1e6;
+  summary.latency_event_ms_p99 = static_cast<double>(stats.latency_event_to_publish_ns.p99) / 1e6;
+  summary.latency_window_ms_p50 = static_cast<double>(stats.latency_window_to_publish_ns.p50) / 1e6;
+  summary.latency_window_ms_p99 = static_cast<double>(stats.latency_window_to_publish_ns.p99) / 1e6;
+  if (publisher) {
+    const auto c = publisher->counters();
+    summary.lcm_url = transport::effective_lcm_url(cfg.lcm.url);
+    summary.lcm_poses = static_cast<std::uint64_t>(c.poses_published);
+    summary.lcm_stats = static_cast<std::uint64_t>(c.stats_published);
+    summary.lcm_failures = static_cast<std::uint64_t>(c.publish_failures);
+  }
   if (pose_stage) summary.pose = pose_stage->summary();
-  if (denoised) {
-    summary.denoise_in = denoised->events_in();
-    summary.denoise_kept = denoised->events_kept();
+  if (!truth.empty()) add_ate(summary, truth, sink.valid_poses());
+  int status = 0;
+  if (const auto err = pipe.error()) {
+    summary.error = *err;
+    spdlog::error("{}", *err);
+    status = 1;
   }
   std::cout << (cli.json ? app::format_json(summary) : app::format_text(summary)) << std::flush;
   if (status != 0) std::fprintf(stderr, "evpipe: %s\n", summary.error.c_str());
@@ -215,9 +294,7 @@ int run(const Cli& cli) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  auto logger = spdlog::stderr_color_mt("evpipe");
-  spdlog::set_default_logger(logger);
-  spdlog::set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%^%l%$] %v");
+  spdlog::set_default_logger(evpipe::service::make_logger("evpipe"));
 
   Cli cli;
   CLI::App app{"evpipe: DAVIS346 event-camera pipeline (replay a recording, or read the camera over USB)"};
@@ -232,6 +309,10 @@ int main(int argc, char** argv) {
   app.add_option("--poses-out", cli.poses_out, "Write every published pose to this trajectory CSV");
   app.add_option("--denoise", cli.denoise,
                  "Denoising filter or chain (evdenoise --list-filters), or none; overrides denoise.filter");
+  app.add_option("--ground-truth", cli.ground_truth,
+                 "Replay: trajectory CSV of the true pose; the summary then reports the ATE");
+  app.add_option("--lcm-url", cli.lcm_url, "LCM provider URL (overrides lcm.url; default: LCM's default)");
+  app.add_flag("--no-lcm", cli.no_lcm, "Do not publish on LCM");
   app.add_option("--log-level", cli.log_level, "trace, debug, info, warn, error, critical or off");
   app.add_flag("--json", cli.json, "Print the summary as one JSON object");
   app.add_flag("--no-progress", cli.no_progress, "No progress bar even on a terminal");

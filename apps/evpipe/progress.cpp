@@ -11,7 +11,8 @@ namespace evpipe::app {
 
 ProgressBar::ProgressBar(bool enabled) : active_(enabled && ::isatty(STDERR_FILENO) == 1) {}
 
-void ProgressBar::update(std::optional<double> fraction, std::uint64_t events, std::int64_t stream_time_us) {
+void ProgressBar::update(std::optional<double> fraction, std::uint64_t events, std::int64_t stream_time_us,
+                         std::string_view extra) {
   if (!active_) return;
   const auto now = Clock::now();
   if (now - last_draw_ < std::chrono::milliseconds(100)) return;
@@ -31,8 +32,9 @@ void ProgressBar::update(std::optional<double> fraction, std::uint64_t events, s
   } else {
     bar = "[live]";
   }
-  std::fprintf(stderr, "\r%s  elapsed %6.1f s  stream %8.2f s  %6.2f Mev/s  %llu ev\x1b[K", bar.c_str(), elapsed,
-               static_cast<double>(stream_time_us) / 1e6, rate_mevs_, static_cast<unsigned long long>(events));
+  std::fprintf(stderr, "\r%s  elapsed %6.1f s  stream %8.2f s  %6.2f Mev/s  %llu ev  %.*s\x1b[K", bar.c_str(), elapsed,
+               static_cast<double>(stream_time_us) / 1e6, rate_mevs_, static_cast<unsigned long long>(events),
+               static_cast<int>(extra.size()), extra.data());
   std::fflush(stderr);
 }
 

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <optional>
+#include <string_view>
 
 namespace evpipe::app {
 
@@ -13,7 +14,9 @@ class ProgressBar {
   /// enabled=false, or stderr not a TTY → all calls are no-ops.
   explicit ProgressBar(bool enabled);
   /// fraction: share of the input consumed (nullopt for live); events: total so far.
-  void update(std::optional<double> fraction, std::uint64_t events, std::int64_t stream_time_us);
+  /// extra: appended as is (kept share, pose status).
+  void update(std::optional<double> fraction, std::uint64_t events, std::int64_t stream_time_us,
+              std::string_view extra = {});
   /// Clears the line.
   void finish();
   [[nodiscard]] bool active() const noexcept { return active_; }

@@ -88,6 +88,25 @@ std::string format_text(const RunSummary& s) {
     if (p.valid_poses == 0 && !p.last_note.empty()) line("no pose", p.last_note);
     if (!p.poses_out.empty()) line("poses written", p.poses_out);
   }
+  std::string drops;
+  for (const auto& [name, n] : s.queue_drops) drops += fmt::format("{}{} {}", drops.empty() ? "" : ", ", name, n);
+  if (!drops.empty()) line("queue drops", drops);
+  if (s.pose.enabled)
+    line("latency",
+         fmt::format("event → LCM p50 {:.2f} ms, p99 {:.2f} ms; window end → LCM p50 {:.3f} ms, p99 {:.3f} ms",
+                     s.latency_event_ms_p50, s.latency_event_ms_p99, s.latency_window_ms_p50, s.latency_window_ms_p99));
+  if (!s.lcm_url.empty())
+    line("LCM", fmt::format("{} pose and {} statistics messages on {}{}", s.lcm_poses, s.lcm_stats, s.lcm_url,
+                            s.lcm_failures ? fmt::format(" ({} not sent)", s.lcm_failures) : ""));
+  if (s.ground_truth_given) {
+    if (s.ate_poses)
+      line("ATE", fmt::format("RMSE {:.2f} mm, mean {:.2f}, median {:.2f}, std {:.2f}, max {:.2f} mm; rotation RMSE "
+                              "{:.3f} deg ({} poses)",
+                              s.ate_mm.rmse, s.ate_mm.mean, s.ate_mm.median, s.ate_mm.std, s.ate_mm.max,
+                              s.rotation_deg.rmse, s.ate_poses));
+    else
+      line("ATE", "no valid pose inside the ground truth's time span");
+  }
   line("wall time",
        fmt::format("{:.3f} s ({})", s.wall_s, rate(s.wall_s > 0 ? static_cast<double>(st.events()) / s.wall_s : 0.0)));
   if (!s.error.empty()) line("error", s.error);
@@ -109,6 +128,28 @@ std::string pose_json(const PoseSummary& p) {
 }
 }  // namespace
 
+namespace {
+std::string pipeline_json(const RunSummary& s) {
+  std::string o = ",\"queue_drops\":{";
+  for (std::size_t i = 0; i < s.queue_drops.size(); ++i)
+    o += fmt::format("{}{}:{}", i ? "," : "", json_quote(s.queue_drops[i].first), s.queue_drops[i].second);
+  o += fmt::format(
+      "}},\"latency_event_ms_p50\":{:.4f},\"latency_event_ms_p99\":{:.4f},\"latency_window_ms_p50\":{:.4f},"
+      "\"latency_window_ms_p99\":{:.4f},\"lcm_url\":{},\"lcm_poses\":{},\"lcm_stats\":{},\"lcm_failures\":{}",
+      s.latency_event_ms_p50, s.latency_event_ms_p99, s.latency_window_ms_p50, s.latency_window_ms_p99,
+      json_quote(s.lcm_url), s.lcm_poses, s.lcm_stats, s.lcm_failures);
+  if (s.ground_truth_given && s.ate_poses)
+    o += fmt::format(
+        ",\"ate_poses\":{},\"ate_rmse_mm\":{:.4f},\"ate_mean_mm\":{:.4f},\"ate_median_mm\":{:.4f},"
+        "\"ate_std_mm\":{:.4f},\"ate_max_mm\":{:.4f},\"rotation_rmse_deg\":{:.5f},\"rotation_max_deg\":{:.5f}",
+        s.ate_poses, s.ate_mm.rmse, s.ate_mm.mean, s.ate_mm.median, s.ate_mm.std, s.ate_mm.max, s.rotation_deg.rmse,
+        s.rotation_deg.max);
+  else if (s.ground_truth_given)
+    o += ",\"ate_poses\":0";
+  return o;
+}
+}  // namespace
+
 std::string format_json(const RunSummary& s) {
   const auto& st = *s.stream;
   return fmt::format(
@@ -127,7 +168,7 @@ std::string format_json(const RunSummary& s) {
       s.source.discontinuities, s.source.skipped_non_dvs, s.source.invalid_events, s.source.corrupt_packets,
       s.source.truncated_bytes, s.source.dropped_packets, s.source.dropped_events, json_quote(s.denoise_filter),
       s.denoise_in, s.denoise_kept, s.denoise_latency_us, s.windows, s.window_events, s.window_us, s.hop_us, s.wall_s,
-      s.interrupted, json_quote(s.error), pose_json(s.pose));
+      s.interrupted, json_quote(s.error), pose_json(s.pose) + pipeline_json(s));
 }
 
 }  // namespace evpipe::app

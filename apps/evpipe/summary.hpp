@@ -3,9 +3,12 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "evpipe/core/source.hpp"
 #include "evpipe/core/stream_stats.hpp"
+#include "evpipe/metrics/trajectory.hpp"
 #include "pose_stage.hpp"
 
 namespace evpipe::app {
@@ -27,6 +30,15 @@ struct RunSummary {
   std::string error;  ///< non-empty when the run stopped on an error
   bool out_of_order_dropped = true;
   PoseSummary pose;
+  std::vector<std::pair<std::string, std::uint64_t>> queue_drops;  ///< per queue: items dropped (live policy)
+  double latency_event_ms_p50 = 0, latency_event_ms_p99 = 0;       ///< newest event read → pose published
+  double latency_window_ms_p50 = 0, latency_window_ms_p99 = 0;     ///< window complete → pose published
+  std::string lcm_url;                                             ///< empty: LCM off
+  std::uint64_t lcm_poses = 0, lcm_stats = 0, lcm_failures = 0;
+  bool ground_truth_given = false;
+  std::size_t ate_poses = 0;
+  metrics::ErrorStats ate_mm;        ///< translation error of the valid poses, mm
+  metrics::ErrorStats rotation_deg;  ///< rotation error, degrees
 };
 
 std::string format_text(const RunSummary& s);

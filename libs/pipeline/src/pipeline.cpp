@@ -333,6 +333,8 @@ struct Pipeline::Impl {
           std::this_thread::sleep_for(options.source_poll);  // live: nothing new yet
           continue;
         }
+        stream.add(b->span());
+        if (stream.first_t_us()) stream_time_us.store(stream.duration_us(), std::memory_order_relaxed);
         if (b->empty()) continue;
         const std::size_t n = b->size();
         bump(m.items_in);
@@ -383,6 +385,7 @@ struct Pipeline::Impl {
       std::lock_guard lock(source_mu);
       s.source = source_snapshot;
     }
+    s.stream_time_us = stream_time_us.load(std::memory_order_relaxed);
     for (const StageMetrics* m : {&m_source, &m_denoise, &m_pose, &m_publish}) s.stages.push_back(m->snapshot());
     s.queues = {batches.stats(), windows_q.stats(), poses.stats()};
     s.windows = denoise_stage.windows();
@@ -429,6 +432,8 @@ struct Pipeline::Impl {
 
   mutable std::mutex source_mu;
   SourceHealth source_snapshot;
+  StreamStats stream;                           // source thread only; read after join
+  std::atomic<std::int64_t> stream_time_us{0};  // its duration so far, for progress displays
   mutable std::mutex error_mu;
   std::string error;
   mutable std::mutex done_mu;
@@ -545,6 +550,14 @@ const PipelineOptions& Pipeline::options() const noexcept {
 }
 const SourceInfo& Pipeline::source_info() const noexcept {
   return impl_->source->info();
+}
+
+const StreamStats& Pipeline::stream_stats() const noexcept {
+  return impl_->stream;
+}
+
+const SourceStats& Pipeline::source_stats() const noexcept {
+  return impl_->source->stats();
 }
 
 }  // namespace evpipe::pipeline

@@ -29,6 +29,7 @@
 
 #include "evpipe/core/slicer.hpp"
 #include "evpipe/core/source.hpp"
+#include "evpipe/core/stream_stats.hpp"
 #include "evpipe/denoise/filter.hpp"
 #include "evpipe/pipeline/histogram.hpp"
 #include "evpipe/pipeline/queue.hpp"
@@ -103,9 +104,10 @@ struct SourceHealth {
 struct PipelineStats {
   double elapsed_s = 0.0;  ///< since start()
   SourceHealth source;
-  std::vector<StageStats> stages;  ///< source, denoise, pose, publish
-  std::vector<QueueStats> queues;  ///< batches, windows, poses
-  std::uint64_t windows = 0;       ///< windows emitted by the slicer
+  std::vector<StageStats> stages;   ///< source, denoise, pose, publish
+  std::vector<QueueStats> queues;   ///< batches, windows, poses
+  std::int64_t stream_time_us = 0;  ///< sensor time from the first to the newest event read
+  std::uint64_t windows = 0;        ///< windows emitted by the slicer
   std::uint64_t denoise_events_in = 0;
   std::uint64_t denoise_events_kept = 0;
   std::uint64_t poses_published = 0;
@@ -181,6 +183,10 @@ class Pipeline {
   [[nodiscard]] std::optional<std::string> error() const;
   [[nodiscard]] const PipelineOptions& options() const noexcept;
   [[nodiscard]] const SourceInfo& source_info() const noexcept;
+  /// Rates, time span and ON share of everything the source delivered. Only after join().
+  [[nodiscard]] const StreamStats& stream_stats() const noexcept;
+  /// The source's own counters. Only after join().
+  [[nodiscard]] const SourceStats& source_stats() const noexcept;
 
   struct Impl;
 
