@@ -1,1 +1,560 @@
-// placeholder: implemented by the pose issue (issue 5)
+#include "evpipe/pose/initialiser.hpp"
+
+#include "evpipe/pose/opnl.hpp"
+#include "evpipe/pose/types.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <utility>
+
+namespace evpipe::pose {
+
+namespace {
+
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kNear_m = 0.01;  // model points closer than this (or behind) do not project
+
+double rad(double d) {
+  return d * kPi / 180.0;
+}
+
+// Angle of a direction modulo pi, in [0, pi).
+double line_angle(const Vector2d& d) {
+  double a = std::atan2(d.y(), d.x());
+  if (a < 0) a += kPi;
+  if (a >= kPi) a -= kPi;
+  return a;
+}
+// Signed difference of two line angles modulo pi, in [-pi/2, pi/2).
+double wrap_half(double a) {
+  a = std::fmod(a + 0.5 * kPi, kPi);
+  if (a < 0) a += kPi;
+  return a - 0.5 * kPi;
+}
+
+// A segment in undistorted pixels (an ideal pinhole with the camera's K): images of 3D lines are straight.
+struct Seg2 {
+  Vector2d a;
+  Vector2d b;
+  [[nodiscard]] double length() const { return (b - a).norm(); }
+  [[nodiscard]] Vector2d dir() const { return (b - a).normalized(); }
+  [[nodiscard]] Vector2d mid() const { return 0.5 * (a + b); }
+  [[nodiscard]] double angle() const { return line_angle(b - a); }
+};
+
+double line_distance(const Seg2& s, const Vector2d& p) {
+  const Vector2d u = s.dir();
+  const Vector2d d = p - s.a;
+  return std::abs(u.x() * d.y() - u.y() * d.x());
+}
+
+// Position of p along s, 0 at a, 1 at b.
+double along(const Seg2& s, const Vector2d& p) {
+  return (p - s.a).dot(s.b - s.a) / (s.b - s.a).squaredNorm();
+}
+
+std::optional<Vector2d> intersect(const Seg2& l, const Seg2& m) {
+  const Vector2d r = l.b - l.a, s = m.b - m.a;
+  const double den = r.x() * s.y() - r.y() * s.x();
+  if (std::abs(den) < 1e-9 * r.norm() * s.norm()) return std::nullopt;
+  const Vector2d q = m.a - l.a;
+  const double t = (q.x() * s.y() - q.y() * s.x()) / den;
+  return l.a + t * r;
+}
+
+struct Detected {
+  Seg2 u;             // undistorted pixels
+  LineObservation n;  // normalised coordinates for OPnL
+  double length{0};
+};
+
+struct Visible {
+  int index{-1};  // model segment
+  Seg2 u;         // projection (undistorted pixels), clipped to the image's neighbourhood
+};
+
+// Pinhole projection (no distortion) into undistorted pixels.
+Vector2d pinhole(const camera::CameraModel& cam, const Vector3d& p) {
+  return {cam.fx * p.x() / p.z() + cam.cx, cam.fy * p.y() / p.z() + cam.cy};
+}
+
+// The model segments a pose shows (in front of the camera, overlapping the image) in undistorted pixels.
+std::vector<Visible> visible_segments(const camera::CameraModel& cam, const camera::LineModel& model,
+                                      const camera::Pose& T) {
+  std::vector<Visible> out;
+  const double margin = 10.0;
+  const double x0 = -margin, y0 = -margin, x1 = cam.width + margin, y1 = cam.height + margin;
+  for (std::size_t i = 0; i < model.segments_m.size(); ++i) {
+    Vector3d A = T.apply(model.segments_m[i].a_m), B = T.apply(model.segments_m[i].b_m);
+    if (A.z() < kNear_m && B.z() < kNear_m) continue;
+    if (A.z() < kNear_m) A = A + (kNear_m - A.z()) / (B.z() - A.z()) * (B - A);
+    if (B.z() < kNear_m) B = B + (kNear_m - B.z()) / (A.z() - B.z()) * (A - B);
+    const Vector2d a = pinhole(cam, A), b = pinhole(cam, B);
+    // Liang-Barsky clipping to the (enlarged) image.
+    double t0 = 0.0, t1 = 1.0;
+    const Vector2d d = b - a;
+    bool inside = true;
+    const double p[4] = {-d.x(), d.x(), -d.y(), d.y()};
+    const double q[4] = {a.x() - x0, x1 - a.x(), a.y() - y0, y1 - a.y()};
+    for (int k = 0; k < 4 && inside; ++k) {
+      if (p[k] == 0.0) {
+        if (q[k] < 0) inside = false;
+        continue;
+      }
+      const double r = q[k] / p[k];
+      if (p[k] < 0) {
+        t0 = std::max(t0, r);
+      } else {
+        t1 = std::min(t1, r);
+      }
+      if (t0 > t1) inside = false;
+    }
+    if (!inside) continue;
+    const Seg2 s{a + t0 * d, a + t1 * d};
+    if (!s.a.allFinite() || !s.b.allFinite() || s.length() < 5.0) continue;
+    out.push_back({static_cast<int>(i), s});
+  }
+  return out;
+}
+
+// Events explained by a pose: events within `band` pixels of the projected model (distortion included: each
+// segment is projected as a polyline of short pieces). A pixel counts once however many segments pass it.
+class SupportCounter {
+ public:
+  SupportCounter(EventSpan events, const camera::CameraModel& cam, double band_px)
+      : cam_(cam),
+        band_(band_px),
+        counts_(static_cast<std::size_t>(cam.width) * cam.height, 0),
+        stamp_(counts_.size(), 0) {
+    for (const Event& e : events) {
+      if (e.x < cam.width && e.y < cam.height) ++counts_[static_cast<std::size_t>(e.y) * cam.width + e.x];
+    }
+  }
+
+  std::size_t explained(const camera::Pose& T, const camera::LineModel& model) {
+    ++tick_;
+    std::size_t sum = 0;
+    for (const auto& s : model.segments_m) {
+      Vector3d A = T.apply(s.a_m), B = T.apply(s.b_m);
+      if (A.z() < kNear_m && B.z() < kNear_m) continue;
+      if (A.z() < kNear_m) A = A + (kNear_m - A.z()) / (B.z() - A.z()) * (B - A);
+      if (B.z() < kNear_m) B = B + (kNear_m - B.z()) / (A.z() - B.z()) * (A - B);
+      const double len_px = (pinhole(cam_, A) - pinhole(cam_, B)).norm();
+      if (!std::isfinite(len_px)) continue;
+      const int n = std::clamp(static_cast<int>(std::ceil(len_px / 6.0)), 1, 400);
+      std::optional<Vector2d> prev = cam_.project(A);
+      for (int k = 1; k <= n; ++k) {
+        const std::optional<Vector2d> cur = cam_.project(A + (B - A) * (static_cast<double>(k) / n));
+        if (prev && cur) sum += piece(*prev, *cur);
+        prev = cur;
+      }
+    }
+    return sum;
+  }
+
+ private:
+  std::size_t piece(const Vector2d& p, const Vector2d& q) {
+    const int xa = std::max(0, static_cast<int>(std::floor(std::min(p.x(), q.x()) - band_)));
+    const int xb = std::min(cam_.width - 1, static_cast<int>(std::ceil(std::max(p.x(), q.x()) + band_)));
+    const int ya = std::max(0, static_cast<int>(std::floor(std::min(p.y(), q.y()) - band_)));
+    const int yb = std::min(cam_.height - 1, static_cast<int>(std::ceil(std::max(p.y(), q.y()) + band_)));
+    const Vector2d d = q - p;
+    const double dd = std::max(d.squaredNorm(), 1e-12);
+    const double b2 = band_ * band_;
+    std::size_t sum = 0;
+    for (int y = ya; y <= yb; ++y) {
+      for (int x = xa; x <= xb; ++x) {
+        const Vector2d r = Vector2d(x, y) - p;
+        const double t = std::clamp(r.dot(d) / dd, 0.0, 1.0);
+        if ((r - t * d).squaredNorm() > b2) continue;
+        const std::size_t idx = static_cast<std::size_t>(y) * cam_.width + x;
+        if (stamp_[idx] == tick_) continue;
+        stamp_[idx] = tick_;
+        sum += counts_[idx];
+      }
+    }
+    return sum;
+  }
+
+  const camera::CameraModel& cam_;
+  double band_;
+  std::vector<std::uint32_t> counts_;
+  std::vector<std::uint32_t> stamp_;
+  std::uint32_t tick_{0};
+};
+
+// A 2D alignment of the projected model with the detected lines and the matches it makes consistent.
+struct Alignment {
+  double score{0.0};                         // summed length of the consistent detected lines
+  std::vector<std::pair<int, int>> matches;  // (detected line, model segment)
+};
+
+struct Scored {
+  camera::Pose T;
+  std::size_t explained{0};
+  std::size_t correspondences{0};
+};
+
+class Search {
+ public:
+  Search(const std::vector<Detected>& det, const camera::CameraModel& cam, const camera::LineModel& model,
+         const std::optional<camera::PosePrior>& prior, const InitialiserOptions& o, SupportCounter& support)
+      : det_(det), cam_(cam), model_(model), prior_(prior), o_(o), support_(support) {}
+
+  // Phase A: the 2D alignments a pseudo-prior offers.
+  void align(const camera::Pose& pseudo) {
+    const std::vector<Visible> vis = visible_segments(cam_, model_, pseudo);
+    if (vis.size() < 2) return;
+    std::vector<std::size_t> order(det_.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t l, std::size_t r) { return det_[l].length > det_[r].length; });
+    order.resize(std::min(order.size(), o_.seed_lines));
+    const double gate = prior_ ? rad(std::min(o_.max_match_angle_deg, prior_->angle_tolerance_deg + 5.0)) : kPi;
+    const double cons = rad(o_.consistency_angle_deg);
+    const double par = rad(std::max(o_.parallel_deg, 15.0));
+    for (std::size_t ii = 0; ii < order.size(); ++ii) {
+      for (std::size_t jj = ii + 1; jj < order.size(); ++jj) {
+        const Detected& d1 = det_[order[ii]];
+        const Detected& d2 = det_[order[jj]];
+        const double dd = wrap_half(d2.u.angle() - d1.u.angle());
+        if (std::abs(dd) < par) continue;
+        const auto Xd = intersect(d1.u, d2.u);
+        if (!Xd || Xd->x() < -cam_.width || Xd->x() > 2.0 * cam_.width || Xd->y() < -cam_.height ||
+            Xd->y() > 2.0 * cam_.height)
+          continue;
+        for (const Visible& m1 : vis) {
+          const double a1 = wrap_half(d1.u.angle() - m1.u.angle());
+          if (std::abs(a1) > gate) continue;
+          for (const Visible& m2 : vis) {
+            if (m2.index == m1.index) continue;
+            const double a2 = wrap_half(d2.u.angle() - m2.u.angle());
+            if (std::abs(a2) > gate || std::abs(wrap_half(a2 - a1)) > cons) continue;
+            const auto Xm = intersect(m1.u, m2.u);
+            if (!Xm) continue;
+            const double psi = a1 + 0.5 * wrap_half(a2 - a1);
+            score_alignment(vis, psi, *Xm, *Xd, order[ii], m1.index, order[jj], m2.index);
+          }
+        }
+      }
+    }
+  }
+
+  // Phase B + C: RANSAC over minimal sets from the best alignments, then re-association and re-solving.
+  std::optional<Scored> solve(std::size_t& hypotheses) {
+    std::stable_sort(aligns_.begin(), aligns_.end(),
+                     [](const Alignment& l, const Alignment& r) { return l.score > r.score; });
+    std::vector<Alignment> top;
+    for (Alignment& a : aligns_) {
+      if (top.size() >= o_.alignments) break;
+      std::sort(a.matches.begin(), a.matches.end());
+      bool same = false;
+      for (const Alignment& t : top) same = same || t.matches == a.matches;
+      if (!same) top.push_back(std::move(a));
+    }
+    std::mt19937_64 rng(o_.seed);
+    OpnlOptions fast;
+    fast.refine = false;
+    fast.fallback = false;
+    std::vector<Scored> poses;
+    for (const Alignment& a : top) {
+      for (int draw = 0; draw <= o_.draws_per_alignment; ++draw) {
+        std::vector<std::pair<int, int>> set;
+        if (draw == o_.draws_per_alignment) {
+          set = a.matches;  // the whole consistent set once
+        } else {
+          for (int tries = 0; tries < 20 && set.empty(); ++tries) {
+            std::vector<std::pair<int, int>> s = a.matches;
+            std::shuffle(s.begin(), s.end(), rng);
+            s.resize(4);
+            if (two_directions(s)) set = std::move(s);
+          }
+        }
+        if (set.size() < 4) continue;
+        ++hypotheses;
+        const OpnlResult r = solve_opnl(correspondences(set), fast);
+        if (!r.ok) continue;
+        std::size_t tried = 0;
+        for (const OpnlCandidate& c : r.candidates) {
+          if (tried++ >= 3) break;
+          consider(c.T_cam_model, set.size(), poses);
+        }
+        if (r.candidates.empty()) consider(r.T_cam_model, set.size(), poses);
+      }
+    }
+    if (poses.empty()) return std::nullopt;
+    std::stable_sort(poses.begin(), poses.end(),
+                     [](const Scored& l, const Scored& r) { return l.explained > r.explained; });
+    std::optional<Scored> best;
+    for (std::size_t k = 0; k < std::min(poses.size(), o_.refine_candidates); ++k) {
+      Scored cur = poses[k];
+      cur.correspondences = 0;
+      for (int round = 0; round < o_.refine_rounds; ++round) {
+        const auto inl = inliers(cur.T);
+        if (inl.size() < 4 || !two_directions(inl)) break;
+        const OpnlResult r = solve_opnl(correspondences(inl));
+        if (!r.ok || !acceptable(r.T_cam_model)) break;
+        const std::size_t ex = support_.explained(r.T_cam_model, model_);
+        if (ex < cur.explained && cur.correspondences > 0) break;
+        cur = {r.T_cam_model, ex, inl.size()};
+      }
+      if (cur.correspondences == 0) cur.correspondences = inliers(cur.T).size();
+      if (!best || cur.explained > best->explained) best = cur;
+    }
+    return best;
+  }
+
+  // Inlier correspondences of a pose: each detected line with the closest projected model segment within the
+  // gates (angle, both endpoints' distance, overlap).
+  std::vector<std::pair<int, int>> inliers(const camera::Pose& T) const {
+    std::vector<std::pair<int, int>> out;
+    const std::vector<Visible> vis = visible_segments(cam_, model_, T);
+    for (std::size_t i = 0; i < det_.size(); ++i) {
+      const Detected& d = det_[i];
+      int best = -1;
+      double best_d = o_.inlier_px;
+      for (const Visible& m : vis) {
+        if (std::abs(wrap_half(d.u.angle() - m.u.angle())) > rad(o_.inlier_angle_deg)) continue;
+        const double dist = std::max(line_distance(m.u, d.u.a), line_distance(m.u, d.u.b));
+        const double t0 = along(m.u, d.u.a), t1 = along(m.u, d.u.b);
+        if (std::max(t0, t1) < -0.05 || std::min(t0, t1) > 1.05) continue;
+        if (dist <= best_d) {
+          best_d = dist;
+          best = m.index;
+        }
+      }
+      if (best >= 0) out.emplace_back(static_cast<int>(i), best);
+    }
+    return out;
+  }
+
+  [[nodiscard]] bool acceptable(const camera::Pose& T) const {
+    if (!T.t_cam_model_m.allFinite() || !T.q_cam_model.coeffs().allFinite()) return false;
+    for (const auto& s : model_.segments_m) {  // the whole model in front of the camera
+      if (T.apply(s.a_m).z() < kNear_m || T.apply(s.b_m).z() < kNear_m) return false;
+    }
+    if (prior_) {
+      if (camera::translation_distance_m(T, prior_->pose) > prior_->position_tolerance_m) return false;
+      if (camera::rotation_angle_deg(T, prior_->pose) > prior_->angle_tolerance_deg) return false;
+    }
+    return true;
+  }
+
+ private:
+  void score_alignment(const std::vector<Visible>& vis, double psi, const Vector2d& Xm, const Vector2d& Xd,
+                       std::size_t i1, int j1, std::size_t i2, int j2) {
+    const Eigen::Rotation2Dd R(psi);
+    const auto tf = [&](const Vector2d& p) -> Vector2d { return R * (p - Xm) + Xd; };
+    thread_local std::vector<Seg2> moved;
+    moved.clear();
+    for (const Visible& m : vis) moved.push_back({tf(m.u.a), tf(m.u.b)});
+    Alignment a;
+    for (std::size_t i = 0; i < det_.size(); ++i) {
+      const Detected& d = det_[i];
+      if (i == i1 || i == i2) {
+        a.matches.emplace_back(static_cast<int>(i), i == i1 ? j1 : j2);
+        a.score += d.length;
+        continue;
+      }
+      const double tol = o_.consistency_px + o_.consistency_scale * (d.u.mid() - Xd).norm();
+      int best = -1;
+      double best_d = tol;
+      for (std::size_t k = 0; k < vis.size(); ++k) {
+        const Seg2& m = moved[k];
+        if (vis[k].index == j1 || vis[k].index == j2) continue;
+        if (std::abs(wrap_half(d.u.angle() - m.angle())) > rad(o_.consistency_angle_deg)) continue;
+        const double dist = std::max(line_distance(m, d.u.a), line_distance(m, d.u.b));
+        if (dist > best_d) continue;
+        const double tm = along(m, d.u.mid());
+        if (tm < -0.25 || tm > 1.25) continue;
+        best_d = dist;
+        best = vis[k].index;
+      }
+      if (best >= 0) {
+        a.matches.emplace_back(static_cast<int>(i), best);
+        a.score += d.length;
+      }
+    }
+    if (a.matches.size() < 4 || !two_directions(a.matches)) return;
+    aligns_.push_back(std::move(a));
+    // Bound the memory: keep the better half when the pool grows large.
+    if (aligns_.size() > 20000) {
+      std::stable_sort(aligns_.begin(), aligns_.end(),
+                       [](const Alignment& l, const Alignment& r) { return l.score > r.score; });
+      aligns_.resize(5000);
+    }
+  }
+
+  [[nodiscard]] bool two_directions(const std::vector<std::pair<int, int>>& set) const {
+    for (std::size_t i = 0; i < set.size(); ++i) {
+      for (std::size_t j = i + 1; j < set.size(); ++j) {
+        const double a = wrap_half(det_[static_cast<std::size_t>(set[i].first)].u.angle() -
+                                   det_[static_cast<std::size_t>(set[j].first)].u.angle());
+        if (std::abs(a) >= rad(o_.parallel_deg)) return true;
+      }
+    }
+    return false;
+  }
+
+  [[nodiscard]] std::vector<LineCorrespondence> correspondences(const std::vector<std::pair<int, int>>& set) const {
+    std::vector<LineCorrespondence> c;
+    c.reserve(set.size());
+    for (const auto& [i, j] : set) {
+      LineCorrespondence lc;
+      lc.image = det_[static_cast<std::size_t>(i)].n;
+      lc.model = model_.segments_m[static_cast<std::size_t>(j)];
+      c.push_back(lc);
+    }
+    return c;
+  }
+
+  void consider(const camera::Pose& T, std::size_t nset, std::vector<Scored>& poses) {
+    if (!acceptable(T)) return;
+    poses.push_back({T, support_.explained(T, model_), nset});
+  }
+
+  const std::vector<Detected>& det_;
+  const camera::CameraModel& cam_;
+  const camera::LineModel& model_;
+  const std::optional<camera::PosePrior>& prior_;
+  const InitialiserOptions& o_;
+  SupportCounter& support_;
+  std::vector<Alignment> aligns_;
+};
+
+// Without a prior: view directions on a Fibonacci sphere (the camera looks at the model's centre from each),
+// each with the depth at which the model's projected extent matches the detected lines' extent.
+std::vector<camera::Pose> pseudo_priors(const std::vector<Detected>& det, const camera::CameraModel& cam,
+                                        const camera::LineModel& model, int samples) {
+  Vector3d lo = Vector3d::Constant(1e300), hi = Vector3d::Constant(-1e300);
+  for (const auto& s : model.segments_m) {
+    lo = lo.cwiseMin(s.a_m).cwiseMin(s.b_m);
+    hi = hi.cwiseMax(s.a_m).cwiseMax(s.b_m);
+  }
+  const Vector3d centre = 0.5 * (lo + hi);
+  // Image extent and centre of the detected lines.
+  Vector2d ilo = Vector2d::Constant(1e300), ihi = Vector2d::Constant(-1e300);
+  for (const Detected& d : det) {
+    ilo = ilo.cwiseMin(d.u.a).cwiseMin(d.u.b);
+    ihi = ihi.cwiseMax(d.u.a).cwiseMax(d.u.b);
+  }
+  const double img_extent = (ihi - ilo).norm();
+  const Vector2d img_centre = 0.5 * (ilo + ihi);
+  const Vector3d ray((img_centre.x() - cam.cx) / cam.fx, (img_centre.y() - cam.cy) / cam.fy, 1.0);
+  const double f = 0.5 * (cam.fx + cam.fy);
+  std::vector<camera::Pose> out;
+  const double golden = kPi * (3.0 - std::sqrt(5.0));
+  for (int k = 0; k < samples; ++k) {
+    const double z = 1.0 - (2.0 * k + 1.0) / samples;
+    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const Vector3d view(r * std::cos(golden * k), r * std::sin(golden * k), z);  // model-frame direction to camera
+    // R_cam_model maps -view onto the optical axis (the camera looks along -view); any roll: the 2D alignment
+    // finds the in-plane rotation.
+    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(-view, Vector3d::UnitZ());
+    // Extent of the model seen from there (orthographic, at 1 m), vs the image extent.
+    Vector2d plo = Vector2d::Constant(1e300), phi = Vector2d::Constant(-1e300);
+    for (const auto& s : model.segments_m) {
+      for (const Vector3d& p : {s.a_m, s.b_m}) {
+        const Vector3d c = q * (p - centre);
+        plo = plo.cwiseMin(c.head<2>());
+        phi = phi.cwiseMax(c.head<2>());
+      }
+    }
+    const double depth = std::max(0.05, f * (phi - plo).norm() / std::max(img_extent, 1.0));
+    camera::Pose T;
+    T.q_cam_model = q;
+    T.t_cam_model_m = ray.normalized() * depth - q * centre;
+    out.push_back(T);
+  }
+  return out;
+}
+
+}  // namespace
+
+InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                           const std::optional<camera::PosePrior>& prior, const InitialiserOptions& options) {
+  InitResult res;
+  if (prior) res.T_cam_model = prior->pose;
+  if (events.empty()) {
+    res.message = "empty window: no events";
+    return res;
+  }
+  std::size_t usable = 0;
+  for (const auto& s : model.segments_m) usable += s.length_m() >= camera::kMinSegmentLength_m ? 1 : 0;
+  if (usable < options.min_lines) {
+    res.message = fmt::format("the model has {} usable segments, need {}", usable, options.min_lines);
+    return res;
+  }
+  LineDetectorOptions dopt = options.detector;
+  dopt.camera = camera;
+  const std::vector<DetectedLine> lines = detect_lines(events, SensorGeometry{camera.width, camera.height}, dopt);
+  res.lines_detected = lines.size();
+  if (lines.size() < options.min_lines) {
+    res.message = fmt::format("{} lines detected, need {}", lines.size(), options.min_lines);
+    return res;
+  }
+  std::vector<Detected> det;
+  double line_support = 0.0;
+  for (const DetectedLine& l : lines) {
+    Detected d;
+    d.u = {camera.undistort(l.segment_px.a_px), camera.undistort(l.segment_px.b_px)};
+    d.n.a_n = camera.pixel_to_normalised(l.segment_px.a_px);
+    d.n.b_n = camera.pixel_to_normalised(l.segment_px.b_px);
+    d.length = d.u.length();
+    if (!d.u.a.allFinite() || !d.u.b.allFinite() || !d.n.a_n.allFinite() || !d.n.b_n.allFinite()) continue;
+    det.push_back(d);
+    line_support += static_cast<double>(l.support);
+  }
+  bool two_dirs = false;
+  for (std::size_t i = 0; i < det.size() && !two_dirs; ++i) {
+    for (std::size_t j = i + 1; j < det.size() && !two_dirs; ++j) {
+      two_dirs = std::abs(wrap_half(det[i].u.angle() - det[j].u.angle())) >= rad(options.parallel_deg);
+    }
+  }
+  if (!two_dirs) {
+    res.message = fmt::format("all {} detected lines are parallel (within {} deg): the pose is not determined",
+                              det.size(), options.parallel_deg);
+    return res;
+  }
+
+  SupportCounter support(events, camera, options.support_band_px);
+  Search search(det, camera, model, prior, options, support);
+  std::vector<camera::Pose> starts;
+  if (prior) {
+    starts.push_back(prior->pose);
+  } else {
+    starts = pseudo_priors(det, camera, model, options.view_samples);
+  }
+  res.pseudo_priors = starts.size();
+  for (const camera::Pose& p : starts) search.align(p);
+  const std::optional<Scored> best = search.solve(res.hypotheses);
+  if (!best) {
+    res.message = prior ? "no hypothesis gave a pose within the prior's tolerance" : "no hypothesis gave a pose";
+    return res;
+  }
+  res.explained_events = best->explained;
+  res.support_share = static_cast<double>(best->explained) / static_cast<double>(events.size());
+  res.correspondences = best->correspondences;
+  const double share = line_support > 0 ? static_cast<double>(best->explained) / line_support : 0.0;
+  if (best->correspondences < options.min_lines || share < options.min_explained_share) {
+    res.message = fmt::format(
+        "best pose has {} line correspondences and explains {} events ({:.0f}% of the events on detected lines, "
+        "need {:.0f}%)",
+        best->correspondences, best->explained, 100.0 * share, 100.0 * options.min_explained_share);
+    return res;
+  }
+  res.ok = true;
+  res.T_cam_model = best->T;
+  res.message = fmt::format("{} lines, {} correspondences, {} events explained ({:.0f}% of the window)", lines.size(),
+                            best->correspondences, best->explained, 100.0 * res.support_share);
+  return res;
+}
+
+}  // namespace evpipe::pose

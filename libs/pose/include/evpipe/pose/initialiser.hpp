@@ -7,15 +7,62 @@
 #include "evpipe/camera/line_model.hpp"
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/core/event.hpp"
+#include "evpipe/pose/line_detector.hpp"
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 
 namespace evpipe::pose {
 
+// How it works (docs/algorithms.md, "Automatic correspondences"): for each pseudo-prior (the prior itself, or
+// without a prior a set of sampled view directions with a depth guessed from the model's size), the visible
+// model segments are projected; pairs of non-parallel detected lines matched to pairs of model segments
+// (angle-gated) fix a 2D rotation + shift that aligns the projected model with the image; the detected lines
+// consistent with an alignment form its hypothesis set; RANSAC draws minimal sets of 4 correspondences from
+// the best sets and solves each with OPnL; every pose inside the prior's tolerance with the model in front of
+// the camera is scored by the events it explains; the best poses are re-associated with all detected lines
+// and re-solved (OPnL + refinement) on all inliers; the pose explaining the most events wins.
 struct InitialiserOptions {
-  // (the implementation adds its parameters here, documented; a seed for RANSAC)
+  /// Line detection (its `camera` is set from the camera argument).
+  LineDetectorOptions detector;
+  /// RANSAC seed: the result is deterministic for a seed.
+  std::uint64_t seed = 1;
+  /// Lines needed (OPnL's minimum).
+  std::size_t min_lines = 4;
+  /// Two lines are "parallel" (one direction) below this angle: at least two directions are needed.
+  double parallel_deg = 10.0;
+  /// Hypotheses: a detected line may match a projected model segment when their image angles differ by at
+  /// most min(prior angle tolerance, this) (degrees). Ignored without a prior (any in-plane rotation).
+  double max_match_angle_deg = 35.0;
+  /// The longest this-many detected lines seed the 2D alignments.
+  std::size_t seed_lines = 8;
+  /// 2D alignment consistency: a detected line agrees with an aligned model segment when the angles differ by
+  /// at most consistency_angle_deg and both endpoints lie within consistency_px + consistency_scale x (their
+  /// distance from the alignment's anchor) of the segment's line (the alignment ignores scale and perspective).
+  double consistency_angle_deg = 8.0;
+  double consistency_px = 8.0;
+  double consistency_scale = 0.15;
+  /// Alignments (best first by consistent line length) that RANSAC draws from, per pseudo-prior.
+  std::size_t alignments = 24;
+  /// Minimal sets (4 correspondences, >= 2 directions) drawn per alignment, plus one solve on its whole set.
+  int draws_per_alignment = 4;
+  /// Poses (best support first) re-associated and re-solved on all their inlier correspondences.
+  std::size_t refine_candidates = 4;
+  /// Re-association at a pose: a detected line is an inlier of a model segment when both its endpoints lie
+  /// within inlier_px of the segment's image line and the angle is below inlier_angle_deg.
+  double inlier_px = 3.0;
+  double inlier_angle_deg = 5.0;
+  /// Re-associate / re-solve rounds.
+  int refine_rounds = 3;
+  /// Events within this distance (pixels, measured image, distortion included) of a projected model segment
+  /// are explained by a pose.
+  double support_band_px = 2.0;
+  /// The chosen pose must explain at least this share of the events that support the detected lines.
+  double min_explained_share = 0.5;
+  /// Without a prior: view directions sampled (Fibonacci sphere) as pseudo-priors.
+  int view_samples = 48;
 };
 
 struct InitResult {
@@ -23,8 +70,11 @@ struct InitResult {
   std::string message;  ///< why not ok ("3 lines detected, need 4", "no hypothesis within the prior", ...)
   camera::Pose T_cam_model;
   std::size_t lines_detected{0};
-  std::size_t correspondences{0};  ///< inlier 2D-3D matches of the chosen pose
-  double support_share{0.0};       ///< share of the window's events explained by the chosen pose
+  std::size_t correspondences{0};   ///< inlier 2D-3D matches of the chosen pose
+  double support_share{0.0};        ///< share of the window's events explained by the chosen pose
+  std::size_t explained_events{0};  ///< events within support_band_px of the chosen pose's projected model
+  std::size_t hypotheses{0};        ///< OPnL solves on minimal sets
+  std::size_t pseudo_priors{0};     ///< poses the search started from (1 with a prior)
 };
 
 [[nodiscard]] InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera,

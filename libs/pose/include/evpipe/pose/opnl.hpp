@@ -4,6 +4,7 @@
 // CONTRACT (issue 5 helpers): the names below are used by the initialiser; extend, do not rename.
 
 #include "evpipe/camera/pose.hpp"
+#include "evpipe/pose/line_refine.hpp"
 #include "evpipe/pose/types.hpp"
 
 #include <span>
@@ -15,7 +16,20 @@ namespace evpipe::pose {
 struct OpnlOptions {
   bool refine = true;    ///< Levenberg-Marquardt (Ceres) on line reprojection distances after the algebraic solve
   bool fallback = true;  ///< multi-start LM when the algebraic solve is ill-conditioned or yields nothing cheiral
-  // (the implementation adds its thresholds here, documented)
+  /// An eigenvalue solution is real when |Im s| <= imag_tol · (1 + |s|) (s = CGR vector); Newton then polishes
+  /// its real part, so a lenient value only adds candidates that the line cost ranks.
+  double imag_tol{1e-4};
+  int newton_steps{2};  ///< Newton steps on ∇J = 0 per real solution
+  /// Candidates are cheiral when every model endpoint is at depth > this (m).
+  double min_depth_m{0.0};
+  /// The fallback also runs when the refined RMS line distance exceeds this (normalised image units; default
+  /// ≈ 4 px at f = 800, 1.2 px at f = 243). Set it to ~2-3 × the expected σ_px / f when σ is known.
+  double fallback_rms_n{5e-3};
+  /// Candidates closer than this (rotation rad and relative translation) are merged (the three pre-rotated
+  /// solves find the same minima).
+  double duplicate_tol{1e-6};
+  RefineOptions refine_options{};   ///< for the final refinement
+  int fallback_max_iterations{30};  ///< LM iterations per start of the 24-start fallback
 };
 
 struct OpnlCandidate {
@@ -30,6 +44,7 @@ struct OpnlResult {
   double rms_n{0.0};                      ///< RMS endpoint-to-line distance of the result, normalised image units
   std::vector<OpnlCandidate> candidates;  ///< every real, cheiral candidate, best first
   bool used_fallback{false};
+  int macaulay_rank_min{0};  ///< smallest rank of the three 105×120 Macaulay matrices (93 = generic)
 };
 
 /// Solves OPnL for n >= 4 correspondences. Never throws for degenerate geometry: ok = false with a message.
