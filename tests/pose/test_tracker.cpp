@@ -1,1 +1,306 @@
-// placeholder: written with the pose issue (issue 5)
+// Tracker (ELOPET-style, MM-estimation) on evsim-rendered windows with known poses, plus the projection and
+// association helpers and the degenerate cases.
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "evpipe/camera/line_model.hpp"
+#include "evpipe/pose/projection.hpp"
+#include "evpipe/pose/tracker.hpp"
+#include "evpipe/sim/noise.hpp"
+#include "evpipe/sim/target3d.hpp"
+#include "evpipe_test_data.hpp"
+
+using namespace evpipe;
+
+namespace {
+
+camera::CameraModel davis() {
+  return camera::load_camera((evpipe::testing::source_dir() / "config" / "davis346.yaml").string());
+}
+camera::LineModel model_file(const std::string& name) {
+  return camera::load_line_model((evpipe::testing::source_dir() / "config" / name).string());
+}
+
+camera::Pose pose_at(const std::vector<camera::StampedPose>& traj, std::int64_t t) {
+  auto it = std::lower_bound(traj.begin(), traj.end(), t,
+                             [](const camera::StampedPose& p, std::int64_t v) { return p.t_us < v; });
+  if (it == traj.begin()) return it->pose;
+  if (it == traj.end()) return traj.back().pose;
+  return camera::interpolate(*(it - 1), *it, t);
+}
+
+struct Window {
+  std::vector<Event> events;
+  camera::Pose truth;  // at the window's mid-time
+  std::size_t signal{0};
+};
+
+// One window of evsim events: the model in front of the DAVIS346 at distance_m (evsim's default view), smooth
+// random motion, BA noise at noise_hz per pixel.
+Window make_window(const camera::CameraModel& cam, const camera::LineModel& model, double distance_m, double noise_hz,
+                   std::uint64_t seed, std::int64_t window_us = 30'000, const camera::LineModel* rendered = nullptr) {
+  sim::TargetScene scene;
+  scene.camera = cam;
+  scene.model = rendered ? *rendered : model;
+  sim::MotionOptions mo;
+  mo.base = sim::facing_pose(model, distance_m, sim::default_view(model));
+  mo.pivot_model_m = sim::bbox_centre(model);
+  std::mt19937_64 rng(seed);
+  scene.trajectory = sim::generate_motion(0, 400'000, mo, rng);
+  const std::int64_t t0 = 200'000;
+  Window w;
+  w.events = sim::render_target(scene, t0, t0 + window_us, rng);
+  w.signal = w.events.size();
+  if (noise_hz > 0) {
+    sim::NoiseOptions no;
+    no.rate_hz_per_pixel = noise_hz;
+    auto noise = sim::background_activity(SensorGeometry{cam.width, cam.height}, t0, t0 + window_us, no, rng);
+    w.events.insert(w.events.end(), noise.begin(), noise.end());
+    std::stable_sort(w.events.begin(), w.events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  }
+  w.truth = pose_at(scene.trajectory, t0 + window_us / 2);
+  return w;
+}
+
+void expect_covariance_pd(const pose::TrackUpdate& up) {
+  ASSERT_TRUE(up.covariance_known);
+  ASSERT_TRUE(up.covariance.allFinite());
+  EXPECT_LT((up.covariance - up.covariance.transpose()).norm(), 1e-12 * up.covariance.norm());
+  const Eigen::SelfAdjointEigenSolver<pose::Covariance6> es(up.covariance);
+  EXPECT_GT(es.eigenvalues()(0), 0.0);
+}
+
+}  // namespace
+
+TEST(Projection, UndistortMapMatchesTheCamera) {
+  const auto cam = davis();
+  const pose::UndistortMap map(cam);
+  for (const auto& [x, y] : {std::pair{0, 0}, std::pair{345, 259}, std::pair{173, 128}, std::pair{10, 250}}) {
+    EXPECT_TRUE(map.contains(x, y));
+    EXPECT_LT((map.at(x, y) - cam.pixel_to_normalised(Eigen::Vector2d(x, y))).norm(), 1e-15);
+  }
+  EXPECT_FALSE(map.contains(346, 0));
+  EXPECT_FALSE(map.contains(0, -1));
+}
+
+TEST(Projection, ClipsToTheImageAndDropsShortSegments) {
+  const auto cam = davis();
+  camera::LineModel m;
+  // A long horizontal segment through the optical axis at 1 m (sticks out on both sides), a short one
+  // (2 cm = ~5 px), one behind the camera, one crossing the camera plane.
+  m.segments_m = {{{-5, 0, 0}, {5, 0, 0}},
+                  {{0, 0.1, 0}, {0.02, 0.1, 0}},
+                  {{0, 0, -3}, {0.5, 0, -3}},
+                  {{0.1, -0.1, -2}, {0.1, -0.1, 0}}};
+  camera::Pose T;
+  T.t_cam_model_m = {0, 0, 1};
+  const auto segs = pose::project_model(cam, m, T);
+  ASSERT_EQ(segs.size(), 2U);
+  EXPECT_EQ(segs[0].model_index, 0U);
+  // The visible part ends on the image border (within the bisection tolerance).
+  for (const auto& p : {segs[0].segment_px.a_px, segs[0].segment_px.b_px}) {
+    EXPECT_TRUE(cam.in_image(p));
+    EXPECT_LT(std::min(std::abs(p.x() + 0.5), std::abs(p.x() - 345.5)), 1e-3) << p.transpose();
+  }
+  // The segment crossing z = 0 keeps its part in front, from the near plane clipped to the image border.
+  EXPECT_EQ(segs[1].model_index, 3U);
+  EXPECT_GT(segs[1].a_m.z() + 1.0, 0.0);
+}
+
+TEST(Association, GatesByDistanceAndAmbiguity) {
+  const auto cam = davis();
+  const pose::UndistortMap map(cam);
+  camera::LineModel m;
+  // Two segments forming an L at 1 m.
+  m.segments_m = {{{-0.2, 0, 0}, {0.2, 0, 0}}, {{0.2, 0, 0}, {0.2, 0.2, 0}}};
+  camera::Pose T;
+  T.t_cam_model_m = {0, 0, 1};
+  const auto segs = pose::project_model(cam, m, T);
+  ASSERT_EQ(segs.size(), 2U);
+  const auto px = [&](double X, double Y) {
+    const Eigen::Vector2d p = cam.normalised_to_pixel(Eigen::Vector2d(X, Y));
+    return Event{0, static_cast<std::uint16_t>(std::lround(p.x())), static_cast<std::uint16_t>(std::lround(p.y())),
+                 true};
+  };
+  const std::vector<Event> ev{px(0.0, 0.0),      // on the horizontal segment
+                              px(0.0, 0.08),     // ~19 px off: beyond the 10 px gate
+                              px(0.2, 0.1),      // on the vertical segment
+                              px(0.2, 0.0),      // at the corner: near both
+                              px(0.19, 0.012)};  // ~3 px from both near the corner: ambiguous
+  std::vector<pose::Association> out;
+  pose::associate_events(ev, map, segs, {}, out);
+  ASSERT_EQ(out.size(), 2U);
+  EXPECT_EQ(out[0].event_index, 0U);
+  EXPECT_EQ(out[0].segment, 0U);
+  EXPECT_EQ(out[1].event_index, 2U);
+  EXPECT_EQ(out[1].segment, 1U);
+  EXPECT_LT(out[0].distance_px, 0.75);
+}
+
+namespace {
+
+// Runs the tracker on every scene (2 targets x 0.6/0.8/1.0 m x 0/5 Hz/px BA noise x 3 seeds) from the truth
+// perturbed by offset_m / offset_deg; prints every result and returns the number converged per noise level
+// (rotation < 1 deg and translation < 10 mm from the mid-window truth, healthy, covariance positive definite).
+struct Tally {
+  int converged[2]{0, 0};
+  int runs[2]{0, 0};
+  int planar_noise_free{0};
+};
+Tally run_scenes(double offset_m, double offset_deg, const pose::TrackerOptions& o, const char* tag) {
+  const auto cam = davis();
+  const pose::UndistortMap map(cam);
+  Tally tally;
+  for (const std::string file : {"target-planar.yaml", "roadheader-wireframe.yaml"}) {
+    const auto model = model_file(file);
+    for (const double distance : {0.6, 0.8, 1.0}) {
+      for (const int noisy : {0, 1}) {
+        for (std::uint64_t k = 0; k < 3; ++k) {
+          const std::uint64_t seed = 1000 + 97 * k + static_cast<std::uint64_t>(distance * 10) + 5 * noisy;
+          const Window w = make_window(cam, model, distance, noisy ? 5.0 : 0.0, seed);
+          std::mt19937_64 rng(seed + 1);
+          const camera::Pose start = sim::perturb_pose(w.truth, offset_m, offset_deg, rng);
+          const auto up = pose::track_window(w.events, map, model, start, o);
+          const double rot = camera::rotation_angle_deg(up.T_cam_model, w.truth);
+          const double mm = 1000 * camera::translation_distance_m(up.T_cam_model, w.truth);
+          bool pd = false;
+          if (up.covariance_known && up.covariance.allFinite()) {
+            pd = Eigen::SelfAdjointEigenSolver<pose::Covariance6>(up.covariance).eigenvalues()(0) > 0.0;
+          }
+          const bool ok = rot < 1.0 && mm < 10.0 && up.healthy && pd;
+          std::cout << tag << " " << file << " d=" << distance << " noise=" << (noisy ? 5 : 0) << " seed=" << seed
+                    << ": " << w.events.size() << " ev (" << w.signal << " signal), rot " << rot << " deg, trans " << mm
+                    << " mm, sigma " << up.sigma_px << " px, inliers " << up.inliers << " (" << up.inlier_share
+                    << "), it " << up.iterations << ", rounds " << up.rounds << ", cond " << up.condition
+                    << (up.healthy ? " healthy" : " UNHEALTHY: " + up.reason) << (ok ? "" : "  <- not converged")
+                    << "\n";
+          EXPECT_TRUE(up.T_cam_model.t_cam_model_m.allFinite());
+          ++tally.runs[noisy];
+          if (ok) ++tally.converged[noisy];
+          if (ok && !noisy && file == "target-planar.yaml") ++tally.planar_noise_free;
+        }
+      }
+    }
+  }
+  std::cout << tag << ": converged " << tally.converged[0] << "/" << tally.runs[0] << " without noise, "
+            << tally.converged[1] << "/" << tally.runs[1] << " with 5 Hz/px BA noise\n";
+  return tally;
+}
+
+}  // namespace
+
+TEST(Tracker, ConvergesFromFiveCmTenDegrees) {
+  // Recovery settings (see TrackerOptions): coarse shift search, wide first gate, many short rounds.
+  pose::TrackerOptions o;
+  o.coarse_search_px = 48;
+  o.association.gate_px = 20;
+  o.association_rounds = 20;
+  o.max_iterations = 2;
+  o.gate_shrink = 0.85;
+  const Tally t = run_scenes(0.05, 10.0, o, "5cm/10deg");
+  // Measured with these seeds: every noise-free planar scene converges, 14/18 noise-free in all (the
+  // roadheader's dense wireframe traps the nearest-segment association in 4), 4/18 at 5 Hz/px raw noise.
+  EXPECT_EQ(t.planar_noise_free, 9);
+  EXPECT_GE(t.converged[0], 14);
+  EXPECT_GE(t.converged[1], 4);
+}
+
+TEST(Tracker, TracksFromOneCmTwoDegrees) {
+  // The tracking regime (the previous window's pose as the prediction), default options.
+  const Tally t = run_scenes(0.01, 2.0, {}, "1cm/2deg");
+  EXPECT_GE(t.converged[0], 17);
+  EXPECT_GE(t.converged[1], 9);
+}
+
+TEST(Tracker, LopetCompatibleSwitchGivesAResult) {
+  const auto cam = davis();
+  const auto model = model_file("target-planar.yaml");
+  const std::uint64_t seed = 4242;
+  std::cout << "seed " << seed << "\n";
+  const Window w = make_window(cam, model, 0.8, 5.0, seed);
+  std::mt19937_64 rng(seed + 1);
+  const camera::Pose start = sim::perturb_pose(w.truth, 0.01, 2.0, rng);
+  pose::TrackerOptions o;
+  o.lopet_compatible = true;
+  const auto lo = pose::track_window(w.events, cam, model, start, o);
+  const auto tb = pose::track_window(w.events, cam, model, start);
+  for (const auto* up : {&tb, &lo}) {
+    std::cout << (up == &lo ? "LOPET   " : "textbook") << ": rot "
+              << camera::rotation_angle_deg(up->T_cam_model, w.truth) << " deg, trans "
+              << 1000 * camera::translation_distance_m(up->T_cam_model, w.truth) << " mm, sigma " << up->sigma_px
+              << " px, inliers " << up->inliers << ", it " << up->iterations << "\n";
+  }
+  EXPECT_TRUE(lo.T_cam_model.t_cam_model_m.allFinite());
+  EXPECT_LT(camera::rotation_angle_deg(lo.T_cam_model, w.truth), 2.0);
+  EXPECT_LT(camera::translation_distance_m(lo.T_cam_model, w.truth), 0.03);
+  // The demo code's scale is larger than the textbook S-scale (pose.md §7.5: ~2x on signed Gaussian residuals;
+  // here it is computed on unsigned distances as the demo code does, measured 1.3x).
+  EXPECT_GT(lo.sigma_px, 1.15 * tb.sigma_px);
+  expect_covariance_pd(lo);
+}
+
+TEST(Tracker, EmptyWindowIsUnhealthyAndKeepsThePrediction) {
+  const auto cam = davis();
+  const auto model = model_file("target-planar.yaml");
+  const camera::Pose predicted = sim::facing_pose(model, 0.8);
+  const auto up = pose::track_window({}, cam, model, predicted);
+  EXPECT_FALSE(up.healthy);
+  EXPECT_NE(up.reason.find("empty"), std::string::npos) << up.reason;
+  EXPECT_TRUE(up.T_cam_model.t_cam_model_m.isApprox(predicted.t_cam_model_m));
+  EXPECT_FALSE(up.covariance_known);
+}
+
+TEST(Tracker, ModelOutOfViewIsUnhealthy) {
+  const auto cam = davis();
+  const auto model = model_file("target-planar.yaml");
+  const std::uint64_t seed = 5;
+  std::cout << "seed " << seed << "\n";
+  const Window w = make_window(cam, model, 0.8, 5.0, seed);
+  for (const Eigen::Vector3d& t : {Eigen::Vector3d(0, 0, -0.8), Eigen::Vector3d(5, 0, 0.8)}) {
+    camera::Pose predicted = w.truth;
+    predicted.t_cam_model_m = t;
+    const auto up = pose::track_window(w.events, cam, model, predicted);
+    EXPECT_FALSE(up.healthy);
+    EXPECT_NE(up.reason.find("out of view"), std::string::npos) << up.reason;
+    EXPECT_TRUE(up.T_cam_model.t_cam_model_m.isApprox(t));
+    EXPECT_TRUE(up.T_cam_model.q_cam_model.coeffs().allFinite());
+  }
+  camera::Pose nan_pose = w.truth;
+  nan_pose.t_cam_model_m.x() = std::nan("");
+  const auto up = pose::track_window(w.events, cam, model, nan_pose);
+  EXPECT_FALSE(up.healthy);
+  EXPECT_FALSE(up.reason.empty());
+}
+
+TEST(Tracker, OnlyParallelLinesSeenIsUnhealthy) {
+  const auto cam = davis();
+  const auto model = model_file("target-planar.yaml");
+  // Render only the target's horizontal lines (outer top and bottom, the top bar): the events constrain
+  // nothing along them.
+  camera::LineModel horizontal;
+  for (const auto& s : model.segments_m) {
+    if (std::abs(s.a_m.y() - s.b_m.y()) < 1e-9) horizontal.segments_m.push_back(s);
+  }
+  ASSERT_EQ(horizontal.segments_m.size(), 4U);  // top, bottom, the L's foot, top bar
+  const std::uint64_t seed = 77;
+  std::cout << "seed " << seed << "\n";
+  const Window w = make_window(cam, model, 0.8, 0.0, seed, 30'000, &horizontal);
+  // Tracked with the full model from the true pose: only horizontal segments get events.
+  const auto up = pose::track_window(w.events, cam, model, w.truth);
+  EXPECT_FALSE(up.healthy);
+  EXPECT_NE(up.reason.find("aperture"), std::string::npos) << up.reason;
+  EXPECT_TRUE(up.T_cam_model.t_cam_model_m.allFinite());
+  // A model made of parallel lines only, tracked on its own events.
+  const auto up2 = pose::track_window(w.events, cam, horizontal, w.truth);
+  EXPECT_FALSE(up2.healthy);
+  EXPECT_NE(up2.reason.find("aperture"), std::string::npos) << up2.reason;
+}

@@ -1,1 +1,458 @@
-// placeholder: implemented by the pose issue (issue 5)
+// ELOPET-style tracking (paper §3.3, eqs. 37-45; docs/algorithms.md "Tracking"): rounds of
+// associate -> S-scale -> IRLS Levenberg-Marquardt with Tukey 4.685 weights at the fixed S-scale, then the
+// covariance and the health of the result.
+
+#include "evpipe/pose/tracker.hpp"
+
+#include "evpipe/pose/mm_estimator.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+
+#include <fmt/format.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <vector>
+
+namespace evpipe::pose {
+
+namespace {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Matrix36d = Eigen::Matrix<double, 3, 6>;
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+// The pose moved by a left increment: R <- exp([dθ]x) R, t <- t + dt (types.hpp's covariance convention).
+camera::Pose apply_increment(const camera::Pose& T, const Vector6d& delta) {
+  const Eigen::Vector3d dtheta = delta.head<3>();
+  const double angle = dtheta.norm();
+  camera::Pose out = T;
+  if (angle > 0.0) {
+    out.q_cam_model = (Eigen::Quaterniond(Eigen::AngleAxisd(angle, dtheta / angle)) * T.q_cam_model).normalized();
+  }
+  out.t_cam_model_m = T.t_cam_model_m + delta.tail<3>();
+  return out;
+}
+
+// The image line of one visible segment at a pose: n = P_a x P_b (the normal of the plane through the camera
+// centre and the segment) is the homogeneous line in normalised coordinates. With inv_m = 1 / |n_xy| the
+// signed event-to-line distance is r = n·(x, y, 1) inv_m (paper eq. 38, normalised units). M = dn/d(dθ, dt).
+struct LineGeometry {
+  Eigen::Vector3d n{Eigen::Vector3d::Zero()};
+  double inv_m{0.0};
+  Matrix36d M{Matrix36d::Zero()};
+};
+
+bool line_geometry(const ProjectedSegment& s, const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double near_m,
+                   bool with_jacobian, LineGeometry& out) {
+  const Eigen::Vector3d Qa = R * s.a_m, Qb = R * s.b_m;
+  const Eigen::Vector3d Pa = Qa + t, Pb = Qb + t;
+  // Both ends must stay in front, or the sign of n (and of every residual) flips.
+  if (!(Pa.z() > near_m) || !(Pb.z() > near_m)) return false;
+  out.n = Pa.cross(Pb);
+  const double m = out.n.head<2>().norm();
+  if (!(m > 1e-15)) return false;
+  out.inv_m = 1.0 / m;
+  if (with_jacobian) {
+    // dP = -[Q]x dθ + dt;  dn = dPa x Pb + Pa x dPb = -[Pb]x dPa + [Pa]x dPb.
+    out.M.leftCols<3>() = skew(Pb) * skew(Qa) - skew(Pa) * skew(Qb);
+    out.M.rightCols<3>() = skew(Pa - Pb);
+  }
+  return true;
+}
+
+// Residuals (normalised units) of every association at pose T; false when a segment degenerates there.
+bool residuals(const camera::Pose& T, const std::vector<ProjectedSegment>& segs, const std::vector<Association>& assoc,
+               double near_m, bool with_jacobian, std::vector<LineGeometry>& geom, std::vector<double>& r) {
+  const Eigen::Matrix3d R = T.rotation();
+  geom.resize(segs.size());
+  for (std::size_t k = 0; k < segs.size(); ++k) {
+    if (!line_geometry(segs[k], R, T.t_cam_model_m, near_m, with_jacobian, geom[k])) return false;
+  }
+  r.resize(assoc.size());
+  for (std::size_t j = 0; j < assoc.size(); ++j) {
+    const LineGeometry& g = geom[assoc[j].segment];
+    const Eigen::Vector2d& p = assoc[j].p_n;
+    r[j] = (g.n.x() * p.x() + g.n.y() * p.y() + g.n.z()) * g.inv_m;
+  }
+  return true;
+}
+
+// J^T W J and J^T W r, accumulated per segment: dr/dn = ((x, y, 1) - r (n_x, n_y, 0) inv_m) inv_m is per
+// event, dn/dX = M per segment, so sum_j w gj gjᵀ is collected per segment (3x3) and mapped once.
+void normal_equations(const std::vector<ProjectedSegment>& segs, const std::vector<Association>& assoc,
+                      const std::vector<LineGeometry>& geom, const std::vector<double>& r, const std::vector<double>& w,
+                      Matrix6d& H, Vector6d& g) {
+  std::vector<Eigen::Matrix3d> A(segs.size(), Eigen::Matrix3d::Zero());
+  std::vector<Eigen::Vector3d> b(segs.size(), Eigen::Vector3d::Zero());
+  for (std::size_t j = 0; j < assoc.size(); ++j) {
+    if (w[j] == 0.0) continue;
+    const LineGeometry& lg = geom[assoc[j].segment];
+    const Eigen::Vector2d& p = assoc[j].p_n;
+    const double s = r[j] * lg.inv_m;
+    const Eigen::Vector3d gj((p.x() - s * lg.n.x()) * lg.inv_m, (p.y() - s * lg.n.y()) * lg.inv_m, lg.inv_m);
+    A[assoc[j].segment].noalias() += w[j] * gj * gj.transpose();
+    b[assoc[j].segment].noalias() += (w[j] * r[j]) * gj;
+  }
+  H.setZero();
+  g.setZero();
+  for (std::size_t k = 0; k < segs.size(); ++k) {
+    H.noalias() += geom[k].M.transpose() * A[k] * geom[k].M;
+    g.noalias() += geom[k].M.transpose() * b[k];
+  }
+}
+
+struct RoundResult {
+  camera::Pose T;
+  double sigma_n{0.0};  // robust scale used (normalised units)
+  int iterations{0};
+  bool converged{false};
+};
+
+// The robust cost whose minimum the round seeks, and the least-squares weights of the next step, at residuals r.
+// Textbook: C = sum rho_c(r / sigma), weights w_c(r / sigma) at the fixed sigma. LOPET: weights recomputed
+// (and normalised) from r, C = sum (w r)², the least-squares weights are w².
+double robust_cost(const std::vector<double>& r, double sigma, const TrackerOptions& o, std::vector<double>& w_ls,
+                   std::vector<double>& scratch) {
+  w_ls.resize(r.size());
+  double cost = 0.0;
+  if (o.lopet_compatible) {
+    scratch.resize(r.size());
+    for (std::size_t j = 0; j < r.size(); ++j) scratch[j] = std::abs(r[j]);
+    mm::lopet_weights(scratch, w_ls);
+    for (std::size_t j = 0; j < r.size(); ++j) {
+      cost += (w_ls[j] * r[j]) * (w_ls[j] * r[j]);
+      w_ls[j] *= w_ls[j];
+    }
+    return cost;
+  }
+  const double inv = 1.0 / sigma;
+  for (std::size_t j = 0; j < r.size(); ++j) {
+    const double u = r[j] * inv;
+    cost += mm::tukey_rho(u, o.c_mm);
+    w_ls[j] = mm::tukey_weight(u, o.c_mm);
+  }
+  return cost;
+}
+
+RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegment>& segs,
+                        const std::vector<Association>& assoc, double sigma_floor_n, const TrackerOptions& o) {
+  RoundResult res;
+  res.T = T0;
+  const double near_m = std::max(o.projection.near_m, 1e-6);
+  std::vector<LineGeometry> geom, geom_try;
+  std::vector<double> r, r_try, w, w_try, scratch;
+  if (!residuals(T0, segs, assoc, near_m, true, geom, r)) return res;
+  if (o.lopet_compatible) {
+    scratch.resize(r.size());
+    for (std::size_t j = 0; j < r.size(); ++j) scratch[j] = std::abs(r[j]);
+    res.sigma_n = std::max(mm::lopet_scale(scratch), sigma_floor_n);
+  } else {
+    mm::SScaleOptions so;
+    so.c = o.c_s;
+    so.b = o.b_s;
+    so.max_iterations = o.s_max_iterations;
+    res.sigma_n = std::max(mm::s_scale(r, so).sigma, sigma_floor_n);
+  }
+  double cost = robust_cost(r, res.sigma_n, o, w, scratch);
+  double lambda = o.lambda_initial;
+  Matrix6d H;
+  Vector6d g;
+  for (int it = 0; it < o.max_iterations; ++it) {
+    normal_equations(segs, assoc, geom, r, w, H, g);
+    double wsum = 0.0;
+    for (double x : w) wsum += x;
+    if (!(wsum > 0.0)) break;
+    ++res.iterations;
+    if (g.lpNorm<Eigen::Infinity>() / wsum < o.gradient_tolerance) {
+      res.converged = true;
+      break;
+    }
+    bool accepted = false;
+    Vector6d delta = Vector6d::Zero();
+    double cost_try = cost;
+    for (int attempt = 0; attempt < 12 && !accepted; ++attempt) {
+      Matrix6d A = H;
+      for (int i = 0; i < 6; ++i) A(i, i) += lambda * std::max(H(i, i), 1e-12);
+      delta = A.ldlt().solve(-g);
+      if (!delta.allFinite()) {
+        lambda *= 10.0;
+        continue;
+      }
+      const camera::Pose T_try = apply_increment(res.T, delta);
+      if (residuals(T_try, segs, assoc, near_m, true, geom_try, r_try)) {
+        cost_try = robust_cost(r_try, res.sigma_n, o, w_try, scratch);
+        if (cost_try <= cost) {
+          accepted = true;
+          res.T = T_try;
+          std::swap(geom, geom_try);
+          std::swap(r, r_try);
+          std::swap(w, w_try);
+          lambda = std::max(lambda * 0.1, 1e-12);
+          break;
+        }
+      }
+      lambda *= 10.0;
+    }
+    if (!accepted) {
+      res.converged = true;  // no descent direction left at this scale: a (local) minimum
+      break;
+    }
+    const double rel_change = (cost - cost_try) / std::max(cost, 1e-300);
+    cost = cost_try;
+    if ((delta.head<3>().norm() < o.step_tolerance_rad && delta.tail<3>().norm() < o.step_tolerance_m) ||
+        rel_change < o.cost_tolerance) {
+      res.converged = true;
+      break;
+    }
+  }
+  return res;
+}
+
+double angle_between_deg(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const double c = std::abs(a.normalized().dot(b.normalized()));
+  return std::acos(std::min(c, 1.0)) * 180.0 / std::numbers::pi;
+}
+
+// Do the segments with at least min_count entries in `counts` span two directions min_angle apart?
+bool two_directions(const std::vector<ProjectedSegment>& segs, const std::vector<std::size_t>& counts,
+                    std::size_t min_count, double min_angle_deg, std::size_t* seen) {
+  std::vector<Eigen::Vector2d> dirs;
+  for (std::size_t k = 0; k < segs.size(); ++k) {
+    if (counts[k] >= min_count) dirs.push_back(segs[k].b_n - segs[k].a_n);
+  }
+  if (seen) *seen = dirs.size();
+  for (std::size_t i = 0; i < dirs.size(); ++i) {
+    for (std::size_t j = i + 1; j < dirs.size(); ++j) {
+      if (angle_between_deg(dirs[i], dirs[j]) >= min_angle_deg) return true;
+    }
+  }
+  return false;
+}
+
+// Coarse alignment for recovery: the image shift (dx, dy) of the projected model that puts the most events near
+// a projected line, turned into a rotation about the camera centre (a shift of d pixels near the principal
+// point is a rotation by d / f).
+camera::Pose coarse_shift(EventSpan events, const camera::CameraModel& camera,
+                          const std::vector<ProjectedSegment>& segs, const camera::Pose& T, double range_px,
+                          double step_px) {
+  cv::Mat mask(camera.height, camera.width, CV_8U, cv::Scalar(255));
+  for (const auto& s : segs) {
+    const double len_px = s.length_px;
+    const int n = std::max(2, static_cast<int>(std::ceil(len_px * 2.0)));
+    for (int i = 0; i <= n; ++i) {
+      const Eigen::Vector2d px = camera.normalised_to_pixel(s.a_n + (s.b_n - s.a_n) * (double(i) / n));
+      const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
+      if (x >= 0 && y >= 0 && x < camera.width && y < camera.height) mask.at<std::uint8_t>(y, x) = 0;
+    }
+  }
+  cv::Mat dist;
+  cv::distanceTransform(mask, dist, cv::DIST_L2, 3);
+  const int steps = static_cast<int>(std::floor(range_px / step_px));
+  long best_score = -1;
+  int best_dx = 0, best_dy = 0;
+  for (int iy = -steps; iy <= steps; ++iy) {
+    for (int ix = -steps; ix <= steps; ++ix) {
+      const int dx = static_cast<int>(std::lround(ix * step_px)), dy = static_cast<int>(std::lround(iy * step_px));
+      long score = 0;
+      for (const Event& e : events) {
+        const int x = e.x - dx, y = e.y - dy;
+        if (x >= 0 && y >= 0 && x < camera.width && y < camera.height && dist.at<float>(y, x) <= 1.5f) ++score;
+      }
+      // Prefer the smaller shift on ties (the prediction is the best guess).
+      if (score > best_score || (score == best_score && dx * dx + dy * dy < best_dx * best_dx + best_dy * best_dy)) {
+        best_score = score;
+        best_dx = dx;
+        best_dy = dy;
+      }
+    }
+  }
+  const double f = focal_px(camera);
+  const Eigen::Quaterniond dq(Eigen::AngleAxisd(-best_dy / f, Eigen::Vector3d::UnitX()) *
+                              Eigen::AngleAxisd(best_dx / f, Eigen::Vector3d::UnitY()));
+  camera::Pose out;
+  out.q_cam_model = (dq * T.q_cam_model).normalized();
+  out.t_cam_model_m = dq * T.t_cam_model_m;
+  return out;
+}
+
+const UndistortMap& cached_map(const camera::CameraModel& camera) {
+  // One table per thread, rebuilt when the camera changes: track_window(camera) stays a plain function.
+  thread_local std::unique_ptr<UndistortMap> map;
+  if (!map || !(map->camera() == camera)) map = std::make_unique<UndistortMap>(camera);
+  return *map;
+}
+
+}  // namespace
+
+TrackUpdate track_window(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                         const camera::Pose& T_predicted, const TrackerOptions& options) {
+  return track_window(events, cached_map(camera), model, T_predicted, options);
+}
+
+TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera::LineModel& model,
+                         const camera::Pose& T_predicted, const TrackerOptions& options) {
+  const TrackerOptions& o = options;
+  const camera::CameraModel& camera = map.camera();
+  TrackUpdate up;
+  up.T_cam_model = T_predicted;
+  if (!T_predicted.t_cam_model_m.allFinite() || !T_predicted.q_cam_model.coeffs().allFinite()) {
+    up.reason = "predicted pose is not finite";
+    return up;
+  }
+  if (events.empty()) {
+    up.reason = "empty window";
+    return up;
+  }
+  const double f = focal_px(camera);
+  const double near_m = std::max(o.projection.near_m, 1e-6);
+  // Speed cap: a uniform stride keeps the window's spatial and temporal spread.
+  std::vector<Event> thinned;
+  if (o.max_events > 0 && events.size() > o.max_events) {
+    const double stride = static_cast<double>(events.size()) / static_cast<double>(o.max_events);
+    thinned.reserve(o.max_events);
+    for (std::size_t i = 0; i < o.max_events; ++i) {
+      thinned.push_back(events[static_cast<std::size_t>(static_cast<double>(i) * stride)]);
+    }
+    events = thinned;
+  }
+
+  camera::Pose T = T_predicted;
+  if (o.coarse_search_px > 0.0) {
+    const auto segs0 = project_model(camera, model, T, o.projection);
+    if (!segs0.empty()) {
+      T = coarse_shift(events, camera, segs0, T, o.coarse_search_px, std::max(o.coarse_search_step_px, 1.0));
+    }
+  }
+  double gate_px = o.association.gate_px;
+  const double sigma_floor_n = 0.01 / f;  // residuals are pixel-quantised: never a scale below 0.01 px
+  std::vector<ProjectedSegment> segs;
+  std::vector<Association> assoc;
+  double sigma_n = 0.0;
+  const int rounds = std::max(o.association_rounds, 1);
+  for (int round = 0; round < rounds; ++round) {
+    segs = project_model(camera, model, T, o.projection);
+    if (segs.empty()) {
+      up.reason = round == 0 ? "model out of view (no projected segment >= min_length_px in the image)"
+                             : "model left the view during the solve";
+      up.T_cam_model = T_predicted;
+      return up;
+    }
+    AssociationOptions ao = o.association;
+    ao.gate_px = gate_px;
+    associate_events(events, map, segs, ao, assoc);
+    std::vector<std::size_t> counts(segs.size(), 0);
+    for (const auto& a : assoc) ++counts[a.segment];
+    if (assoc.size() < 6) {
+      up.reason = fmt::format("{} events associated with the model (need >= 6)", assoc.size());
+      up.T_cam_model = T_predicted;
+      up.segments_visible = segs.size();
+      return up;
+    }
+    if (!two_directions(segs, counts, o.min_line_inliers, o.min_direction_angle_deg, nullptr)) {
+      up.reason = "events on lines of one direction only (aperture problem: the pose is not observable)";
+      up.T_cam_model = T_predicted;
+      up.segments_visible = segs.size();
+      up.associated = assoc.size();
+      return up;
+    }
+    const RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, o);
+    T = rr.T;
+    sigma_n = rr.sigma_n;
+    up.iterations += rr.iterations;
+    up.converged = rr.converged;
+    up.rounds = round + 1;
+    up.gate_px = gate_px;
+    gate_px = std::clamp(std::min(o.gate_shrink * gate_px, o.gate_sigma_factor * sigma_n * f), o.gate_min_px, gate_px);
+  }
+
+  // Final statistics at the final pose with the last round's association and scale.
+  std::vector<LineGeometry> geom;
+  std::vector<double> r, w;
+  if (!T.t_cam_model_m.allFinite() || !T.q_cam_model.coeffs().allFinite() ||
+      !residuals(T, segs, assoc, near_m, true, geom, r)) {
+    up.reason = "the solve left the model's valid geometry (segment behind the camera)";
+    up.T_cam_model = T_predicted;
+    return up;
+  }
+  up.T_cam_model = T;
+  up.associated = assoc.size();
+  up.segments_visible = segs.size();
+  w.resize(r.size());
+  double sigma_cov = sigma_n;
+  if (o.lopet_compatible) {
+    std::vector<double> absr(r.size());
+    for (std::size_t j = 0; j < r.size(); ++j) absr[j] = std::abs(r[j]);
+    sigma_cov = std::max(mm::lopet_scale(absr), sigma_floor_n);
+  }
+  mm::mm_weights(r, sigma_cov, w, o.c_mm);
+  std::vector<std::size_t> inliers_per_seg(segs.size(), 0);
+  for (std::size_t j = 0; j < r.size(); ++j) {
+    if (w[j] > 0.0) {
+      ++up.inliers;
+      ++inliers_per_seg[assoc[j].segment];
+    }
+  }
+  up.inlier_share = static_cast<double>(up.inliers) / static_cast<double>(events.size());
+  up.sigma_px = sigma_cov * f;
+  const bool directions =
+      two_directions(segs, inliers_per_seg, o.min_line_inliers, o.min_direction_angle_deg, &up.lines_seen);
+
+  Matrix6d H;
+  Vector6d g;
+  normal_equations(segs, assoc, geom, r, w, H, g);
+  // Conditioning with translations in units of the mean depth, so that both blocks are angles.
+  double depth = 0.0;
+  for (const auto& s : segs) depth += 0.5 * (T.apply(s.a_m).z() + T.apply(s.b_m).z());
+  depth /= static_cast<double>(segs.size());
+  Vector6d scale;
+  scale << 1.0, 1.0, 1.0, depth, depth, depth;
+  const Matrix6d Hs = scale.asDiagonal() * H * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> es(Hs);
+  const double ev_min = es.eigenvalues()(0), ev_max = es.eigenvalues()(5);
+  up.condition = ev_min > 0.0 ? ev_max / ev_min : std::numeric_limits<double>::infinity();
+  if (ev_min > 0.0 && std::isfinite(up.condition)) {
+    // sigma² (J^T W J)^-1, from the eigen-decomposition of the scaled matrix (scaled back).
+    const Matrix6d Hs_inv =
+        es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+    up.covariance = sigma_cov * sigma_cov * (scale.asDiagonal() * Hs_inv * scale.asDiagonal());
+    up.covariance = 0.5 * (up.covariance + up.covariance.transpose());
+    up.covariance_known = up.covariance.allFinite();
+    if (!up.covariance_known) up.covariance.setZero();
+  }
+
+  std::vector<std::string> why;
+  if (up.inliers < o.min_inliers) why.push_back(fmt::format("{} inliers < {}", up.inliers, o.min_inliers));
+  if (up.inlier_share < o.min_inlier_share) {
+    why.push_back(fmt::format("inlier share {:.3f} < {:.3f}", up.inlier_share, o.min_inlier_share));
+  }
+  if (!(up.sigma_px <= o.max_sigma_px)) {
+    why.push_back(fmt::format("sigma {:.2f} px > {:.2f} px", up.sigma_px, o.max_sigma_px));
+  }
+  if (!directions) {
+    why.push_back(fmt::format("inliers on {} segments without two directions >= {} deg apart (aperture)", up.lines_seen,
+                              o.min_direction_angle_deg));
+  }
+  if (!(up.condition <= o.max_condition)) {
+    why.push_back(fmt::format("J^T W J ill-conditioned ({:.3g} > {:.3g})", up.condition, o.max_condition));
+  }
+  if (!up.covariance_known) why.push_back("covariance not positive definite");
+  up.healthy = why.empty();
+  for (std::size_t i = 0; i < why.size(); ++i) up.reason += (i ? "; " : "") + why[i];
+  return up;
+}
+
+}  // namespace evpipe::pose

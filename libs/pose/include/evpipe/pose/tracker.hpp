@@ -6,15 +6,67 @@
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
 #include "evpipe/core/event.hpp"
+#include "evpipe/pose/projection.hpp"
 #include "evpipe/pose/types.hpp"
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 namespace evpipe::pose {
 
 struct TrackerOptions {
-  // (the implementation adds its parameters here, documented: gates, c constants, iterations, thresholds)
+  // --- Event window. track_window() uses exactly the events it is given; these two say how the caller (the
+  // estimator) should cut windows: the paper uses 30 ms event frames, ELOPET a pose every 10 ms.
+  std::int64_t window_us = 30'000;  ///< length of the window handed to track_window()
+  std::int64_t step_us = 10'000;    ///< time between successive updates (windows overlap when < window_us)
+  std::size_t max_events = 0;       ///< > 0: use at most this many events of a window (uniform stride)
+
+  // --- Projection and association (docs/algorithms.md, "Tracking").
+  ProjectionOptions projection;
+  AssociationOptions association;  ///< association.gate_px is the gate of the first round
+  /// Rounds of (associate, S-scale, IRLS). Round 1 uses association.gate_px around the predicted pose; every
+  /// later round re-associates around the pose of the previous one with gate = clamp(min(gate_shrink ×
+  /// previous gate, gate_sigma_factor × sigma_S), gate_min_px, previous gate). 2 = re-associate once after
+  /// convergence. From a poor prediction (recovery, a 5 cm / 10 deg prior) use a wide first gate and more rounds
+  /// (e.g. gate_px = 40, association_rounds = 6): the gate then halves every round (coarse to fine).
+  int association_rounds = 4;
+  /// > 0: before the first round, search image shifts of the projected model within ±coarse_search_px (step
+  /// coarse_search_step_px) for the one that puts the most events within 1.5 px of a projected line (a
+  /// distance transform of the rendered model), and turn the pose about the camera centre by that shift. For
+  /// recovery from a poor prior (the shift is what a rotation/translation error mostly does to the image); off
+  /// when tracking from the previous window.
+  double coarse_search_px = 0.0;
+  double coarse_search_step_px = 2.0;
+  double gate_shrink = 0.5;
+  double gate_sigma_factor = 4.0;
+  double gate_min_px = 2.5;
+
+  // --- Robust estimation (paper eqs. 40-44).
+  double c_s = 1.547;   ///< Tukey c of the S-scale step
+  double b_s = 0.1994;  ///< b = rho_{c_s}(inf) / 2 (50 % breakdown)
+  int s_max_iterations = 10;
+  double c_mm = 4.685;  ///< Tukey c of the MM step
+  /// The authors' demo-code variant instead (pose.md §7.4/7.5): scale and weights recomputed from the current
+  /// residuals at every iteration with c = 4.685 for both passes, weights normalised to sum 1 and squared in
+  /// the cost. For A/B comparisons only.
+  bool lopet_compatible = false;
+
+  // --- IRLS Levenberg-Marquardt on the 6 pose parameters (so(3) left increment, translation).
+  int max_iterations = 20;           ///< per round
+  double gradient_tolerance = 1e-9;  ///< stop when max|J^T W r| / sum(W) < this (normalised image units)
+  double step_tolerance_rad = 1e-7;  ///< ... or the step is below both of these
+  double step_tolerance_m = 1e-7;
+  double cost_tolerance = 1e-7;  ///< ... or the robust cost changed by less than this fraction
+  double lambda_initial = 1e-4;  ///< LM damping, relative to diag(J^T W J)
+
+  // --- Health (TrackUpdate::healthy).
+  double min_inlier_share = 0.05;  ///< inliers / window events
+  std::size_t min_inliers = 100;
+  double max_sigma_px = 2.0;            ///< largest acceptable S-scale
+  std::size_t min_line_inliers = 15;    ///< a projected segment "is seen" with at least this many inliers
+  double min_direction_angle_deg = 15;  ///< two seen segments at least this far from parallel are needed
+  double max_condition = 1e7;           ///< of J^T W J with translations scaled by the mean depth
 };
 
 struct TrackUpdate {
@@ -27,8 +79,13 @@ struct TrackUpdate {
   double inlier_share{0.0};   ///< inliers / events in the window
   int iterations{0};
   bool converged{false};
-  bool healthy{false};  ///< enough inliers, lines in >= 2 directions, well conditioned
-  std::string reason;   ///< why not healthy
+  bool healthy{false};              ///< enough inliers, lines in >= 2 directions, well conditioned
+  std::string reason;               ///< why not healthy
+  std::size_t segments_visible{0};  ///< projected model segments in the image at the final pose
+  std::size_t lines_seen{0};        ///< projected segments with >= min_line_inliers inliers
+  double condition{0.0};            ///< condition number of the depth-scaled J^T W J (0 when not computed)
+  double gate_px{0.0};              ///< association gate of the last round
+  int rounds{0};                    ///< association rounds run
 };
 
 /// One tracking update on a window of events from the predicted pose. Never throws on degenerate input
@@ -36,5 +93,9 @@ struct TrackUpdate {
 [[nodiscard]] TrackUpdate track_window(EventSpan events, const camera::CameraModel& camera,
                                        const camera::LineModel& model, const camera::Pose& T_predicted,
                                        const TrackerOptions& options = {});
+
+/// The same with an undistortion table built once for the camera (track_window above keeps one per thread).
+[[nodiscard]] TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera::LineModel& model,
+                                       const camera::Pose& T_predicted, const TrackerOptions& options = {});
 
 }  // namespace evpipe::pose
