@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -86,6 +87,28 @@ evpipe::io::ReaderOptions reader_options(const evpipe::config::SourceConfig& s) 
     if (*count == 20) spdlog::warn("further reader warnings are counted in the summary, not logged");
   };
   return o;
+}
+
+// evpipe's default for the paper's curvature filter differs in one parameter from evdenoise's (the paper's
+// Table 1 setting): fits that are singular on the pixel grid are kept, not dropped. A thin target edge puts
+// its neighbours on one line of pixels, so its quadric fit is rank-deficient: with `reject` the filter drops
+// 86 % of the signal of the roadheader scenes and tracking fails (docs/algorithms.md, "Curvature filter in
+// the pipeline"). Applied only when the configuration does not set `singular` itself.
+std::vector<std::pair<std::string, std::string>> pipeline_denoise_params(const evpipe::config::DenoiseConfig& d) {
+  auto params = d.params;
+  std::vector<std::string> names;
+  for (std::size_t start = 0; start <= d.filter.size();) {
+    const auto comma = std::min(d.filter.find(',', start), d.filter.size());
+    names.push_back(d.filter.substr(start, comma - start));
+    start = comma + 1;
+  }
+  const bool single = names.size() == 1;
+  if (std::find(names.begin(), names.end(), "curvature") == names.end()) return params;
+  const std::string key = single ? "singular" : "curvature.singular";
+  for (const auto& [k, v] : params)
+    if (k == key || k == "curvature.singular") return params;
+  params.emplace_back(key, "keep");
+  return params;
 }
 
 // The summary's accuracy block: ATE of the valid poses against the ground truth (replay only).
@@ -171,7 +194,8 @@ int run(const Cli& cli) {
   std::unique_ptr<denoise::Filter> filter;
   if (cfg.denoise.filter != "none") {
     try {
-      filter = denoise::make_filter_chain(cfg.denoise.filter, cfg.denoise.params, source->info().geometry);
+      filter =
+          denoise::make_filter_chain(cfg.denoise.filter, pipeline_denoise_params(cfg.denoise), source->info().geometry);
     } catch (const std::invalid_argument& e) {
       std::fprintf(stderr, "evpipe: configuration error: denoise: %s\n", e.what());
       return 2;

@@ -53,7 +53,9 @@ pose::PoseEstimate PoseStage::process(const EventWindow& window) {
   }
   if (window.starts_segment && summary_.windows > 0) estimator_.reset();  // clock jumped: the track is stale
   const auto t0 = std::chrono::steady_clock::now();
-  auto estimate = estimator_.process(events, window.t1_us);
+  // The pose is fitted to all events of the window: it best represents the window's middle, which is the
+  // time it is stamped with (a 30 ms window lags its end by 15 ms).
+  auto estimate = estimator_.process(events, window.t0_us + (window.t1_us - window.t0_us) / 2);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   ++summary_.windows;
   ++summary_.windows_by_status[static_cast<int>(estimate.status)];

@@ -86,8 +86,8 @@ TEST_P(EvpipePose, EstimatesPosesCloseToTheTruth) {
   EXPECT_EQ(field(r.out, "pose_enabled"), "true");
   const auto est = evpipe::camera::read_trajectory_csv(poses);
   const auto gt = evpipe::camera::read_trajectory_csv(stem.string() + ".gt.csv");
-  // 2 s of 30 ms windows = 66; initialisation may take the first window or two.
-  EXPECT_GE(est.size(), 60u) << r.out;
+  // 2 s of 30 ms windows = 66; a slow start gathers up to 300 ms of events to initialise.
+  EXPECT_GE(est.size(), 50u) << r.out;
   EXPECT_EQ(field(r.out, "pose_updates"), std::to_string(est.size()));
   const auto a = ate(est, gt);
   std::cout << model << " " << distance_m << " m " << noise_hz << " Hz/px: " << est.size() << " poses, ATE RMSE "

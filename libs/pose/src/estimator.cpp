@@ -4,7 +4,9 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -16,6 +18,8 @@ void EstimatorOptions::validate() const {
   if (!(reinit_position_tolerance_m > 0.0) || !std::isfinite(reinit_position_tolerance_m))
     throw std::invalid_argument(
         fmt::format("pose.reinit_position_tolerance_m: must be > 0, got {}", reinit_position_tolerance_m));
+  if (init_accumulate_us < 0)
+    throw std::invalid_argument(fmt::format("pose.init_accumulate_us: must be >= 0, got {}", init_accumulate_us));
   if (!(reinit_angle_tolerance_deg > 0.0 && reinit_angle_tolerance_deg <= 180.0))
     throw std::invalid_argument(
         fmt::format("pose.reinit_angle_tolerance_deg: must be in (0, 180], got {}", reinit_angle_tolerance_deg));
@@ -31,6 +35,7 @@ PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model
 }
 
 void PoseEstimator::reset() {
+  recent_.clear();
   last_.reset();
   previous_.reset();
   unhealthy_in_a_row_ = 0;
@@ -65,6 +70,8 @@ PoseEstimate PoseEstimator::initialise(EventSpan window, std::int64_t t_end_us) 
   } else if (prior_) {
     out.T_cam_model = prior_->pose;
   }
+  // The window alone when it is rich enough (the freshest view), else the accumulated events.
+  if (window.size() < options_.init_target_events) window = recent_;
   if (window.size() < options_.init_min_events) {
     out.note = fmt::format("{} events in the window, initialisation needs {}", window.size(), options_.init_min_events);
     return out;
@@ -107,14 +114,36 @@ PoseEstimate PoseEstimator::initialise(EventSpan window, std::int64_t t_end_us) 
   return out;
 }
 
+void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
+  // Windows may overlap (hop < length): only events newer than those already held are added.
+  const std::int64_t newest_held = recent_.empty() ? std::numeric_limits<std::int64_t>::min() : recent_.back().t_us;
+  for (const Event& e : window)
+    if (e.t_us > newest_held) recent_.push_back(e);
+  const std::int64_t oldest_kept = t_us - options_.init_accumulate_us;
+  const std::size_t cap = std::max({options_.init_target_events, options_.track_min_events, window.size()});
+  std::size_t drop = 0;
+  while (drop < recent_.size() && (recent_[drop].t_us < oldest_kept || recent_.size() - drop > cap)) ++drop;
+  recent_.erase(recent_.begin(), recent_.begin() + static_cast<std::ptrdiff_t>(drop));
+}
+
+EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us) const {
+  if (window.size() >= options_.track_min_events) return window;
+  // A sparse window: the newest track_min_events events, but none older than track_max_span_us.
+  auto first = recent_.end() - static_cast<std::ptrdiff_t>(std::min(recent_.size(), options_.track_min_events));
+  while (first != recent_.end() && first->t_us < t_us - options_.track_max_span_us) ++first;
+  const EventSpan extended(first, recent_.end());
+  return extended.size() > window.size() ? extended : window;
+}
+
 PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
   ++counters_.windows;
+  remember(window, t_end_us);
   PoseEstimate out;
   if (status_ != TrackStatus::tracking) {
     out = initialise(window, t_end_us);
   } else {
     const camera::Pose predicted = predict(t_end_us);
-    const TrackUpdate u = track_window(window, camera_, model_, predicted, options_.track);
+    const TrackUpdate u = track_window(tracking_events(window, t_end_us), camera_, model_, predicted, options_.track);
     out.t_us = t_end_us;
     out.window_events = window.size();
     if (u.healthy) {

@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace evpipe::pose {
 
@@ -28,6 +29,15 @@ struct EstimatorOptions {
   int lost_after_windows = 3;
   /// Windows with fewer events are not worth an initialisation attempt (counted as a failed attempt).
   std::size_t init_min_events = 200;
+  /// A slow target gives sparse 30 ms windows in which no line is long enough to detect: initialisation then
+  /// uses the events of the last init_accumulate_us (up to init_target_events, the newest kept), tracking
+  /// still uses the window alone.
+  std::int64_t init_accumulate_us = 300'000;
+  std::size_t init_target_events = 4000;
+  /// Tracking on a sparse window (slow target, or most events filtered out) uses the newest track_min_events
+  /// events instead, none older than track_max_span_us (pose.md §8: windows sized by count, capped in time).
+  std::size_t track_min_events = 1500;
+  std::int64_t track_max_span_us = 100'000;
   /// Re-initialisation after a loss searches around the last good pose with these tolerances.
   double reinit_position_tolerance_m = 0.3;
   double reinit_angle_tolerance_deg = 45.0;
@@ -78,6 +88,8 @@ class PoseEstimator {
 
  private:
   PoseEstimate initialise(EventSpan window, std::int64_t t_end_us);
+  void remember(EventSpan window, std::int64_t t_us);
+  [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us) const;
   [[nodiscard]] camera::Pose predict(std::int64_t t_end_us) const;
   void set_status(TrackStatus s);
 
@@ -88,6 +100,7 @@ class PoseEstimator {
   TrackStatus status_{TrackStatus::initialising};
   std::optional<camera::StampedPose> last_;      ///< last good pose
   std::optional<camera::StampedPose> previous_;  ///< the one before (for constant velocity)
+  std::vector<Event> recent_;                    ///< the newest events (init_accumulate_us, at most a few thousand)
   int unhealthy_in_a_row_{0};
   EstimatorCounters counters_;
 };
