@@ -143,9 +143,10 @@ PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
     out = initialise(window, t_end_us);
   } else {
     const camera::Pose predicted = predict(t_end_us);
-    const TrackUpdate u = track_window(tracking_events(window, t_end_us), camera_, model_, predicted, options_.track);
+    const EventSpan events = tracking_events(window, t_end_us);
+    const TrackUpdate u = track_window(events, camera_, model_, predicted, options_.track);
     out.t_us = t_end_us;
-    out.window_events = window.size();
+    out.window_events = events.size();
     if (u.healthy) {
       unhealthy_in_a_row_ = 0;
       previous_ = last_;

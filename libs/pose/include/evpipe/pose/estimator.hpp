@@ -56,7 +56,7 @@ struct PoseEstimate {
   Covariance6 covariance{Covariance6::Zero()};
   bool covariance_known{false};
   TrackStatus status{TrackStatus::initialising};
-  std::size_t window_events{0};
+  std::size_t window_events{0};  ///< events the estimate used (a sparse window is extended, see options)
   std::size_t inliers{0};
   double sigma_px{0.0};
   bool initialised_now{false};  ///< this window ran a successful (re-)initialisation
