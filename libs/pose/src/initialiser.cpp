@@ -330,6 +330,11 @@ class Search {
     if (poses.empty()) return std::nullopt;
     std::stable_sort(poses.begin(), poses.end(),
                      [](const Scored& l, const Scored& r) { return l.explained > r.explained; });
+    // The re-solve on all inliers: OPnL, then LM (line_refine.hpp) with a Huber loss so that one wrong
+    // association cannot pull the pose.
+    OpnlOptions full;
+    full.refine_options.loss = RefineOptions::Loss::huber;
+    full.refine_options.loss_scale_n = o_.refine_huber_px / (0.5 * (cam_.fx + cam_.fy));
     std::optional<Scored> best;
     for (std::size_t k = 0; k < std::min(poses.size(), o_.refine_candidates); ++k) {
       if (2 * poses[k].explained < poses[0].explained) break;  // far behind the best: not worth a re-solve
@@ -338,7 +343,7 @@ class Search {
       for (int round = 0; round < o_.refine_rounds; ++round) {
         const auto inl = inliers(cur.T);
         if (inl.size() < 4 || !two_directions(inl)) break;
-        const OpnlResult r = solve_opnl(correspondences(inl));
+        const OpnlResult r = solve_opnl(correspondences(inl), full);
         if (!r.ok || !acceptable(r.T_cam_model)) break;
         const std::size_t ex = support_.explained(r.T_cam_model, model_);
         if (ex < cur.explained && cur.correspondences > 0) break;

@@ -64,6 +64,8 @@ struct InitialiserOptions {
   /// within inlier_px of the segment's image line and the angle is below inlier_angle_deg.
   double inlier_px = 3.0;
   double inlier_angle_deg = 5.0;
+  /// Huber scale (pixels) of the LM refinement in the re-solve on all inliers.
+  double refine_huber_px = 1.5;
   /// Re-associate / re-solve rounds.
   int refine_rounds = 3;
   /// Events within this distance (pixels, measured image, distortion included) of a projected model segment
