@@ -234,14 +234,15 @@ OpnlResult solve_opnl(std::span<const LineCorrespondence> lines, const OpnlOptio
 
   // Three pre-rotated frames (π/2 about x, y, z, about the centroid): at least one is far from the CGR
   // singularity at 180°, whatever the true rotation. Candidates of all three are pooled.
-  out.macaulay_rank_min = 1 << 20;
-  for (int axis = 0; axis < 3; ++axis) {
+  out.macaulay_rank_min = options.algebraic ? 1 << 20 : 0;
+  for (int axis = 0; axis < 3 && options.algebraic; ++axis) {
     const Eigen::Matrix3d R_k = rot_axis(axis, std::numbers::pi / 2.0);
     const FrameSystem sys = build_system(lines, normals, n_qr, N, R_k, centroid);
     detail::CriticalPointStats stats;
     const std::vector<Eigen::Vector3d> sols =
         detail::cgr_critical_points(sys.G, options.imag_tol, options.newton_steps, &stats);
     out.macaulay_rank_min = std::min(out.macaulay_rank_min, stats.rank);
+    out.robust_solves += stats.robust_path ? 1 : 0;
     const Eigen::Quaterniond q_k(R_k);
     for (const Eigen::Vector3d& s : sols) {
       const double h = 1.0 + s.squaredNorm();
@@ -292,7 +293,7 @@ OpnlResult solve_opnl(std::span<const LineCorrespondence> lines, const OpnlOptio
     }
   }
 
-  const bool ill_conditioned = out.macaulay_rank_min != 93;
+  const bool ill_conditioned = options.algebraic && out.macaulay_rank_min != 93;
   const double rms = have ? std::sqrt(best_cost / (2.0 *
                                                    [&] {
                                                      double w = 0.0;
@@ -302,7 +303,7 @@ OpnlResult solve_opnl(std::span<const LineCorrespondence> lines, const OpnlOptio
                                                      return w;
                                                    }()))
                           : std::numeric_limits<double>::infinity();
-  if (options.fallback && (!have || ill_conditioned || !(rms <= options.fallback_rms_n))) {
+  if ((options.fallback || !options.algebraic) && (!have || ill_conditioned || !(rms <= options.fallback_rms_n))) {
     if (auto fb = multi_start(lines, normals, n_qr, centroid, radius_m, options)) {
       // A relative margin: the fallback often reaches the same minimum, and round-off must not decide.
       if (!have || fb->final_cost < best_cost * (1.0 - 1e-6)) {

@@ -15,6 +15,7 @@
 #include <array>
 #include <cmath>
 #include <complex>
+#include <random>
 
 namespace evpipe::pose::detail {
 namespace {
@@ -148,6 +149,146 @@ bool newton_polish(const Matrix10d& G, Eigen::Vector3d& s, int steps) {
   return s.allFinite();
 }
 
+Eigen::Matrix<double, 3, kMonomials3> cubic_coefficients(const Matrix10d& G) {
+  const Tables& tb = tables();
+  Eigen::Matrix<double, 3, kMonomials3> f = Eigen::Matrix<double, 3, kMonomials3>::Zero();
+  for (int k = 0; k < 3; ++k) {
+    for (const GradTerm& term : tb.grad[static_cast<std::size_t>(k)]) {
+      f(k, term.mono) += term.c * G(term.i, term.j);
+    }
+  }
+  return f;
+}
+
+// Mᵀ (columns = the rows m·f_k of M, column index 3·m + k).
+Eigen::MatrixXd macaulay_transposed(const Eigen::Matrix<double, 3, kMonomials3>& f) {
+  const Tables& tb = tables();
+  Eigen::MatrixXd Mt = Eigen::MatrixXd::Zero(kMonomials7, kRows);
+  for (int m = 0; m < kMonomials4; ++m) {
+    for (int k = 0; k < 3; ++k) {
+      for (int c = 0; c < kMonomials3; ++c) {
+        Mt(tb.shift[static_cast<std::size_t>(m)][static_cast<std::size_t>(c)], 3 * m + k) = f(k, c);
+      }
+    }
+  }
+  return Mt;
+}
+
+// The fast path's elimination template, found once on a random instance: Gaussian elimination of M with
+// partial pivoting, columns taken from the highest degree down, picks 93 independent rows and 93 pivot
+// monomials; the 27 remaining monomials (all of degree <= 6) form a basis B of the quotient. For any instance
+// where the 93×93 pivot block is invertible, the null space is Z = [−A⁻¹ B_cols; I] and the multiplication
+// matrix of g on B is read from its rows g·b. The result is checked at run time (LU rcond) and the
+// orthogonal (pivoted QR) path is used when the block is ill-conditioned.
+struct Template {
+  bool valid{false};
+  std::vector<int> rows;                // 93 rows of M (3·m + k)
+  std::vector<int> pivot_cols;          // 93 monomials
+  std::vector<int> basis_cols;          // 27 monomials
+  std::array<int, kMonomials7> slot{};  // position in pivot_cols (>= 0) or −1 − position in basis_cols
+
+  Template() {
+    std::mt19937_64 rng(0x5eed0b1);
+    std::normal_distribution<double> g(0.0, 1.0);
+    Eigen::Matrix<double, 12, 10> E;
+    for (int i = 0; i < E.size(); ++i) {
+      E(i) = g(rng);
+    }
+    const Matrix10d G = E.transpose() * E;
+    Eigen::MatrixXd M = macaulay_transposed(cubic_coefficients(G / G.cwiseAbs().maxCoeff())).transpose();
+    std::vector<bool> used(kRows, false);
+    const double tol = 1e-9 * M.cwiseAbs().maxCoeff();
+    for (int c = kMonomials7 - 1; c >= 0; --c) {
+      int best = -1;
+      double best_v = tol;
+      for (int r = 0; r < kRows; ++r) {
+        if (!used[static_cast<std::size_t>(r)] && std::abs(M(r, c)) > best_v) {
+          best_v = std::abs(M(r, c));
+          best = r;
+        }
+      }
+      if (best < 0 || static_cast<int>(pivot_cols.size()) == kMonomials7 - kSolutions) {
+        basis_cols.push_back(c);
+        continue;
+      }
+      used[static_cast<std::size_t>(best)] = true;
+      rows.push_back(best);
+      pivot_cols.push_back(c);
+      for (int r = 0; r < kRows; ++r) {
+        if (!used[static_cast<std::size_t>(r)] && M(r, c) != 0.0) {
+          M.row(r) -= (M(r, c) / M(best, c)) * M.row(best);
+        }
+      }
+    }
+    valid = static_cast<int>(basis_cols.size()) == kSolutions;
+    for (const int b : basis_cols) {
+      const auto& e = tables().expo[static_cast<std::size_t>(b)];
+      valid = valid && e[0] + e[1] + e[2] <= kMaxDeg - 1;
+    }
+    for (std::size_t i = 0; i < pivot_cols.size(); ++i) {
+      slot[static_cast<std::size_t>(pivot_cols[i])] = static_cast<int>(i);
+    }
+    for (std::size_t j = 0; j < basis_cols.size(); ++j) {
+      slot[static_cast<std::size_t>(basis_cols[j])] = -1 - static_cast<int>(j);
+    }
+  }
+};
+
+const Template& elimination_template() {
+  static const Template t;
+  return t;
+}
+
+// Fast path: the multiplication matrix of g on the template basis, and the null space Z (120×27) it belongs to.
+// False when the pivot block is ill-conditioned for this instance.
+bool template_solve(const Eigen::Matrix<double, 3, kMonomials3>& f, Eigen::MatrixXd& Z,
+                    Eigen::Matrix<double, kSolutions, kSolutions>& A, double* rcond_out) {
+  const Template& tp = elimination_template();
+  if (!tp.valid) {
+    return false;
+  }
+  const Tables& tb = tables();
+  constexpr int kPiv = kMonomials7 - kSolutions;
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(kPiv, kPiv);
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(kPiv, kSolutions);
+  for (int i = 0; i < kPiv; ++i) {
+    const int row = tp.rows[static_cast<std::size_t>(i)];
+    const int m = row / 3;
+    const int k = row % 3;
+    for (int c = 0; c < kMonomials3; ++c) {
+      const int col = tb.shift[static_cast<std::size_t>(m)][static_cast<std::size_t>(c)];
+      const int slot = tp.slot[static_cast<std::size_t>(col)];
+      if (slot >= 0) {
+        P(i, slot) = f(k, c);
+      } else {
+        B(i, -1 - slot) = f(k, c);
+      }
+    }
+  }
+  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(P);
+  const double rcond = lu.rcond();
+  *rcond_out = rcond;
+  if (!(rcond > 1e-13)) {
+    return false;
+  }
+  const Eigen::MatrixXd X = lu.solve(B);
+  if (!X.allFinite()) {
+    return false;
+  }
+  Z.setZero(kMonomials7, kSolutions);
+  for (int i = 0; i < kPiv; ++i) {
+    Z.row(tp.pivot_cols[static_cast<std::size_t>(i)]) = -X.row(i);
+  }
+  for (int j = 0; j < kSolutions; ++j) {
+    Z(tp.basis_cols[static_cast<std::size_t>(j)], j) = 1.0;
+  }
+  for (int j = 0; j < kSolutions; ++j) {
+    const auto& mk = tb.mul[static_cast<std::size_t>(tp.basis_cols[static_cast<std::size_t>(j)])];
+    A.row(j) = kShift[0] * Z.row(mk[0]) + kShift[1] * Z.row(mk[1]) + kShift[2] * Z.row(mk[2]);
+  }
+  return true;
+}
+
 }  // namespace
 
 Vector10d cgr_monomials(const Eigen::Vector3d& s) {
@@ -171,52 +312,41 @@ std::vector<Eigen::Vector3d> cgr_critical_points(const Matrix10d& G_in, double i
   }
   const Matrix10d G = G_in / g_scale;
 
-  // The three half-gradient cubics, 20 coefficients each.
-  Eigen::Matrix<double, 3, kMonomials3> f = Eigen::Matrix<double, 3, kMonomials3>::Zero();
-  for (int k = 0; k < 3; ++k) {
-    for (const GradTerm& term : tb.grad[static_cast<std::size_t>(k)]) {
-      f(k, term.mono) += term.c * G(term.i, term.j);
-    }
-  }
-
-  // Mᵀ directly (columns = rows m·f_k of M).
-  Eigen::MatrixXd Mt = Eigen::MatrixXd::Zero(kMonomials7, kRows);
-  for (int m = 0; m < kMonomials4; ++m) {
-    for (int k = 0; k < 3; ++k) {
-      const int col = 3 * m + k;
-      for (int c = 0; c < kMonomials3; ++c) {
-        Mt(tb.shift[static_cast<std::size_t>(m)][static_cast<std::size_t>(c)], col) = f(k, c);
-      }
-    }
-  }
-  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Mt);
-  const auto diag = qr.matrixQR().diagonal().cwiseAbs();
-  const double r0 = diag(0);
+  const Eigen::Matrix<double, 3, kMonomials3> f = cubic_coefficients(G);
   const int generic_rank = kMonomials7 - kSolutions;  // 93
-  int rank = 0;
-  for (int i = 0; i < kRows; ++i) {
-    rank += diag(i) > 1e-13 * r0 ? 1 : 0;
-  }
-  st.rank = rank;
-  st.rank_ratio = r0 > 0.0 ? diag(generic_rank) / r0 : 0.0;
-  if (rank != generic_rank) {
-    if (stats != nullptr) {
-      *stats = st;
+  Eigen::MatrixXd Z;
+  Eigen::Matrix<double, kSolutions, kSolutions> A;
+  if (template_solve(f, Z, A, &st.template_rcond)) {
+    st.rank = generic_rank;
+  } else {
+    // Robust path: orthonormal null space from the column-pivoted QR of Mᵀ.
+    st.robust_path = true;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(macaulay_transposed(f));
+    const auto diag = qr.matrixQR().diagonal().cwiseAbs();
+    const double r0 = diag(0);
+    int rank = 0;
+    for (int i = 0; i < kRows; ++i) {
+      rank += diag(i) > 1e-13 * r0 ? 1 : 0;
     }
-    return out;
+    st.rank = rank;
+    st.rank_ratio = r0 > 0.0 ? diag(generic_rank) / r0 : 0.0;
+    if (rank != generic_rank) {
+      if (stats != nullptr) {
+        *stats = st;
+      }
+      return out;
+    }
+    // Null space of M = the last 27 columns of Q.
+    Eigen::MatrixXd E = Eigen::MatrixXd::Zero(kMonomials7, kSolutions);
+    E.bottomRows(kSolutions).setIdentity();
+    Z = qr.householderQ() * E;
+    Eigen::MatrixXd Zsh(kMonomials6, kSolutions);
+    for (int r = 0; r < kMonomials6; ++r) {
+      const auto& mk = tb.mul[static_cast<std::size_t>(r)];
+      Zsh.row(r) = kShift[0] * Z.row(mk[0]) + kShift[1] * Z.row(mk[1]) + kShift[2] * Z.row(mk[2]);
+    }
+    A = Z.topRows(kMonomials6).colPivHouseholderQr().solve(Zsh);
   }
-  // Null space of M = the last 27 columns of Q.
-  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(kMonomials7, kSolutions);
-  E.bottomRows(kSolutions).setIdentity();
-  const Eigen::MatrixXd Z = qr.householderQ() * E;
-
-  Eigen::MatrixXd Zsh(kMonomials6, kSolutions);
-  for (int r = 0; r < kMonomials6; ++r) {
-    const auto& mk = tb.mul[static_cast<std::size_t>(r)];
-    Zsh.row(r) = kShift[0] * Z.row(mk[0]) + kShift[1] * Z.row(mk[1]) + kShift[2] * Z.row(mk[2]);
-  }
-  const auto Zlo = Z.topRows(kMonomials6);
-  const Eigen::Matrix<double, kSolutions, kSolutions> A = Zlo.colPivHouseholderQr().solve(Zsh);
   const Eigen::EigenSolver<Eigen::Matrix<double, kSolutions, kSolutions>> es(A, true);
   if (es.info() != Eigen::Success) {
     if (stats != nullptr) {
@@ -226,7 +356,7 @@ std::vector<Eigen::Vector3d> cgr_critical_points(const Matrix10d& G_in, double i
   }
   // Only the rows of 1, s1, s2, s3 of the monomial vectors are needed.
   const Eigen::Matrix<std::complex<double>, 4, kSolutions> W =
-      Zlo.topRows(4).cast<std::complex<double>>() * es.eigenvectors();
+      Z.topRows(4).cast<std::complex<double>>() * es.eigenvectors();
   out.reserve(kSolutions);
   for (int j = 0; j < kSolutions; ++j) {
     const std::complex<double> w0 = W(0, j);

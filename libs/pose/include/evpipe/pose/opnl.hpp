@@ -16,6 +16,8 @@ namespace evpipe::pose {
 struct OpnlOptions {
   bool refine = true;    ///< Levenberg-Marquardt (Ceres) on line reprojection distances after the algebraic solve
   bool fallback = true;  ///< multi-start LM when the algebraic solve is ill-conditioned or yields nothing cheiral
+  /// false skips the polynomial solve: the 24-start LM alone (for comparisons and tests; implies fallback).
+  bool algebraic = true;
   /// An eigenvalue solution is real when |Im s| <= imag_tol · (1 + |s|) (s = CGR vector); Newton then polishes
   /// its real part, so a lenient value only adds candidates that the line cost ranks.
   double imag_tol{1e-4};
@@ -45,6 +47,7 @@ struct OpnlResult {
   std::vector<OpnlCandidate> candidates;  ///< every real, cheiral candidate, best first
   bool used_fallback{false};
   int macaulay_rank_min{0};  ///< smallest rank of the three 105×120 Macaulay matrices (93 = generic)
+  int robust_solves{0};      ///< pre-rotated solves whose elimination template was ill-conditioned (QR path)
 };
 
 /// Solves OPnL for n >= 4 correspondences. Never throws for degenerate geometry: ok = false with a message.
