@@ -1,12 +1,12 @@
 #pragma once
 // Synthetic windows of a line target with a known pose for the line-detector and initialiser tests: a
 // constant twist (translation + rotation about the model's centre) so that every edge moves, rendered with
-// libs/sim, plus optional background activity.
-
-#include <gtest/gtest.h>
+// libs/sim, plus optional background activity. Shared by tests/pose and tests/bench/bench_pose_init.cpp
+// (needs EVPIPE_SOURCE_DIR defined).
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <random>
 #include <string>
@@ -16,7 +16,6 @@
 #include "evpipe/camera/line_model.hpp"
 #include "evpipe/sim/noise.hpp"
 #include "evpipe/sim/target3d.hpp"
-#include "evpipe_test_data.hpp"
 
 namespace evpipe::pose_test {
 
@@ -40,10 +39,10 @@ struct WindowSpec {
 };
 
 inline camera::CameraModel davis346() {
-  return camera::load_camera((evpipe::testing::source_dir() / "config" / "davis346.yaml").string());
+  return camera::load_camera((std::filesystem::path(EVPIPE_SOURCE_DIR) / "config" / "davis346.yaml").string());
 }
 inline camera::LineModel load_model(const std::string& file) {
-  return camera::load_line_model((evpipe::testing::source_dir() / "config" / file).string());
+  return camera::load_line_model((std::filesystem::path(EVPIPE_SOURCE_DIR) / "config" / file).string());
 }
 
 inline Eigen::Vector3d random_unit(std::mt19937_64& rng) {

@@ -204,23 +204,3 @@ TEST(LineDetector, LinesLieOnTheProjectedModelAndEachEdgeOnce) {
     EXPECT_GE(static_cast<double>(matched), 0.9 * static_cast<double>(lines));
   }
 }
-
-TEST(LineDetector, DISABLED_Dump) {
-  WindowSpec spec;
-  spec.model_file = std::getenv("DUMP_MODEL") ? std::getenv("DUMP_MODEL") : "roadheader-wireframe.yaml";
-  spec.distance_m = std::getenv("DUMP_D") ? std::atof(std::getenv("DUMP_D")) : 0.8;
-  spec.noise_hz = std::getenv("DUMP_NOISE") ? std::atof(std::getenv("DUMP_NOISE")) : 0.0;
-  spec.seed = std::getenv("DUMP_SEED") ? std::strtoull(std::getenv("DUMP_SEED"), nullptr, 10) : 1;
-  const Window w = make_window(spec);
-  const auto lines = pose::detect_lines(w.events, SensorGeometry{w.cam.width, w.cam.height}, options_for(w));
-  for (const auto& d : lines) {
-    const Match m = match(w, d);
-    std::cout << "line (" << d.segment_px.a_px.transpose() << ") -> (" << d.segment_px.b_px.transpose() << ") len "
-              << (d.segment_px.b_px - d.segment_px.a_px).norm() << " support " << d.support << " rms " << d.rms_px
-              << " -> seg " << m.segment << " dist " << m.dist_px << " t " << m.t0 << ".." << m.t1 << "\n";
-  }
-  for (std::size_t i = 0; i < w.model.segments_m.size(); ++i) {
-    const auto s = camera::project_segment(w.cam, w.truth, w.model.segments_m[i]);
-    if (s) std::cout << "gt " << i << " (" << s->a_px.transpose() << ") -> (" << s->b_px.transpose() << ")\n";
-  }
-}

@@ -34,9 +34,11 @@ double line_angle(const Vector2d& d) {
 }
 // Signed difference of two line angles modulo pi, in [-pi/2, pi/2).
 double wrap_half(double a) {
-  a = std::fmod(a + 0.5 * kPi, kPi);
-  if (a < 0) a += kPi;
-  return a - 0.5 * kPi;
+  if (!std::isfinite(a)) return 0.5 * kPi;
+  if (std::abs(a) > 8.0 * kPi) a = std::fmod(a, kPi);
+  while (a >= 0.5 * kPi) a -= kPi;
+  while (a < -0.5 * kPi) a += kPi;
+  return a;
 }
 
 // A segment in undistorted pixels (an ideal pinhole with the camera's K): images of 3D lines are straight.
@@ -71,13 +73,16 @@ std::optional<Vector2d> intersect(const Seg2& l, const Seg2& m) {
 
 struct Detected {
   Seg2 u;             // undistorted pixels
+  double angle{0};    // u.angle()
   LineObservation n;  // normalised coordinates for OPnL
   double length{0};
+  double weight{1.0};  // OPnL weight: the line's support relative to the mean (its endpoints' precision)
 };
 
 struct Visible {
-  int index{-1};  // model segment
-  Seg2 u;         // projection (undistorted pixels), clipped to the image's neighbourhood
+  int index{-1};    // model segment
+  Seg2 u;           // projection (undistorted pixels), clipped to the image's neighbourhood
+  double angle{0};  // u.angle()
 };
 
 // Pinhole projection (no distortion) into undistorted pixels.
@@ -87,9 +92,8 @@ Vector2d pinhole(const camera::CameraModel& cam, const Vector3d& p) {
 
 // The model segments a pose shows (in front of the camera, overlapping the image) in undistorted pixels.
 std::vector<Visible> visible_segments(const camera::CameraModel& cam, const camera::LineModel& model,
-                                      const camera::Pose& T) {
+                                      const camera::Pose& T, double margin) {
   std::vector<Visible> out;
-  const double margin = 10.0;
   const double x0 = -margin, y0 = -margin, x1 = cam.width + margin, y1 = cam.height + margin;
   for (std::size_t i = 0; i < model.segments_m.size(); ++i) {
     Vector3d A = T.apply(model.segments_m[i].a_m), B = T.apply(model.segments_m[i].b_m);
@@ -119,7 +123,7 @@ std::vector<Visible> visible_segments(const camera::CameraModel& cam, const came
     if (!inside) continue;
     const Seg2 s{a + t0 * d, a + t1 * d};
     if (!s.a.allFinite() || !s.b.allFinite() || s.length() < 5.0) continue;
-    out.push_back({static_cast<int>(i), s});
+    out.push_back({static_cast<int>(i), s, s.angle()});
   }
   return out;
 }
@@ -205,12 +209,30 @@ struct Scored {
 class Search {
  public:
   Search(const std::vector<Detected>& det, const camera::CameraModel& cam, const camera::LineModel& model,
-         const std::optional<camera::PosePrior>& prior, const InitialiserOptions& o, SupportCounter& support)
-      : det_(det), cam_(cam), model_(model), prior_(prior), o_(o), support_(support) {}
+         const std::optional<camera::PosePrior>& prior, const InitialiserOptions& o, SupportCounter& support,
+         double line_support)
+      : det_(det), cam_(cam), model_(model), prior_(prior), o_(o), support_(support), line_support_(line_support) {}
 
   // Phase A: the 2D alignments a pseudo-prior offers.
   void align(const camera::Pose& pseudo) {
-    const std::vector<Visible> vis = visible_segments(cam_, model_, pseudo);
+    aligns_.clear();
+    align_from(pseudo);
+    // This start's best distinct alignments.
+    std::stable_sort(aligns_.begin(), aligns_.end(),
+                     [](const Alignment& l, const Alignment& r) { return l.score > r.score; });
+    std::vector<Alignment> keep;
+    for (Alignment& a : aligns_) {
+      if (keep.size() >= o_.alignments) break;
+      std::sort(a.matches.begin(), a.matches.end());
+      bool same = false;
+      for (const Alignment& t : keep) same = same || t.matches == a.matches;
+      if (!same) keep.push_back(std::move(a));
+    }
+    per_start_.push_back(std::move(keep));
+  }
+
+  void align_from(const camera::Pose& pseudo) {
+    const std::vector<Visible> vis = visible_segments(cam_, model_, pseudo, o_.hypothesis_margin_px);
     if (vis.size() < 2) return;
     std::vector<std::size_t> order(det_.size());
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -224,18 +246,18 @@ class Search {
       for (std::size_t jj = ii + 1; jj < order.size(); ++jj) {
         const Detected& d1 = det_[order[ii]];
         const Detected& d2 = det_[order[jj]];
-        const double dd = wrap_half(d2.u.angle() - d1.u.angle());
+        const double dd = wrap_half(d2.angle - d1.angle);
         if (std::abs(dd) < par) continue;
         const auto Xd = intersect(d1.u, d2.u);
         if (!Xd || Xd->x() < -cam_.width || Xd->x() > 2.0 * cam_.width || Xd->y() < -cam_.height ||
             Xd->y() > 2.0 * cam_.height)
           continue;
         for (const Visible& m1 : vis) {
-          const double a1 = wrap_half(d1.u.angle() - m1.u.angle());
+          const double a1 = wrap_half(d1.angle - m1.angle);
           if (std::abs(a1) > gate) continue;
           for (const Visible& m2 : vis) {
             if (m2.index == m1.index) continue;
-            const double a2 = wrap_half(d2.u.angle() - m2.u.angle());
+            const double a2 = wrap_half(d2.angle - m2.angle);
             if (std::abs(a2) > gate || std::abs(wrap_half(a2 - a1)) > cons) continue;
             const auto Xm = intersect(m1.u, m2.u);
             if (!Xm) continue;
@@ -249,22 +271,37 @@ class Search {
 
   // Phase B + C: RANSAC over minimal sets from the best alignments, then re-association and re-solving.
   std::optional<Scored> solve(std::size_t& hypotheses) {
-    std::stable_sort(aligns_.begin(), aligns_.end(),
-                     [](const Alignment& l, const Alignment& r) { return l.score > r.score; });
+    // The best `alignments` over all starts, then each start's best not yet in (with many pseudo-priors the
+    // right one's alignment must not be crowded out by high-scoring wrong ones of the others).
+    std::vector<const Alignment*> all;
+    for (const auto& v : per_start_) {
+      for (const Alignment& a : v) all.push_back(&a);
+    }
+    std::stable_sort(all.begin(), all.end(),
+                     [](const Alignment* l, const Alignment* r) { return l->score > r->score; });
     std::vector<Alignment> top;
-    for (Alignment& a : aligns_) {
+    const auto add = [&](const Alignment& a) {
+      for (const Alignment& t : top) {
+        if (t.matches == a.matches) return;
+      }
+      top.push_back(a);
+    };
+    for (const Alignment* a : all) {
       if (top.size() >= o_.alignments) break;
-      std::sort(a.matches.begin(), a.matches.end());
-      bool same = false;
-      for (const Alignment& t : top) same = same || t.matches == a.matches;
-      if (!same) top.push_back(std::move(a));
+      add(*a);
+    }
+    for (const auto& v : per_start_) {
+      if (!v.empty()) add(v.front());
     }
     std::mt19937_64 rng(o_.seed);
     OpnlOptions fast;
     fast.refine = false;
     fast.fallback = false;
     std::vector<Scored> poses;
+    std::size_t best_explained = 0;
     for (const Alignment& a : top) {
+      // Adaptive stop: a pose already explains (nearly) all the events on the detected lines.
+      if (static_cast<double>(best_explained) >= o_.early_stop_share * line_support_) break;
       for (int draw = 0; draw <= o_.draws_per_alignment; ++draw) {
         std::vector<std::pair<int, int>> set;
         if (draw == o_.draws_per_alignment) {
@@ -287,19 +324,26 @@ class Search {
           consider(c.T_cam_model, set.size(), poses);
         }
         if (r.candidates.empty()) consider(r.T_cam_model, set.size(), poses);
+        for (const Scored& p : poses) best_explained = std::max(best_explained, p.explained);
       }
     }
     if (poses.empty()) return std::nullopt;
     std::stable_sort(poses.begin(), poses.end(),
                      [](const Scored& l, const Scored& r) { return l.explained > r.explained; });
+    // The re-solve on all inliers: OPnL, then LM (line_refine.hpp) with a Huber loss so that one wrong
+    // association cannot pull the pose.
+    OpnlOptions full;
+    full.refine_options.loss = RefineOptions::Loss::huber;
+    full.refine_options.loss_scale_n = o_.refine_huber_px / (0.5 * (cam_.fx + cam_.fy));
     std::optional<Scored> best;
     for (std::size_t k = 0; k < std::min(poses.size(), o_.refine_candidates); ++k) {
+      if (2 * poses[k].explained < poses[0].explained) break;  // far behind the best: not worth a re-solve
       Scored cur = poses[k];
       cur.correspondences = 0;
       for (int round = 0; round < o_.refine_rounds; ++round) {
         const auto inl = inliers(cur.T);
         if (inl.size() < 4 || !two_directions(inl)) break;
-        const OpnlResult r = solve_opnl(correspondences(inl));
+        const OpnlResult r = solve_opnl(correspondences(inl), full);
         if (!r.ok || !acceptable(r.T_cam_model)) break;
         const std::size_t ex = support_.explained(r.T_cam_model, model_);
         if (ex < cur.explained && cur.correspondences > 0) break;
@@ -315,13 +359,13 @@ class Search {
   // gates (angle, both endpoints' distance, overlap).
   std::vector<std::pair<int, int>> inliers(const camera::Pose& T) const {
     std::vector<std::pair<int, int>> out;
-    const std::vector<Visible> vis = visible_segments(cam_, model_, T);
+    const std::vector<Visible> vis = visible_segments(cam_, model_, T, 10.0);
     for (std::size_t i = 0; i < det_.size(); ++i) {
       const Detected& d = det_[i];
       int best = -1;
       double best_d = o_.inlier_px;
       for (const Visible& m : vis) {
-        if (std::abs(wrap_half(d.u.angle() - m.u.angle())) > rad(o_.inlier_angle_deg)) continue;
+        if (std::abs(wrap_half(d.angle - m.angle)) > rad(o_.inlier_angle_deg)) continue;
         const double dist = std::max(line_distance(m.u, d.u.a), line_distance(m.u, d.u.b));
         const double t0 = along(m.u, d.u.a), t1 = along(m.u, d.u.b);
         if (std::max(t0, t1) < -0.05 || std::min(t0, t1) > 1.05) continue;
@@ -356,6 +400,7 @@ class Search {
     moved.clear();
     for (const Visible& m : vis) moved.push_back({tf(m.u.a), tf(m.u.b)});
     Alignment a;
+    const double cons_rad = rad(o_.consistency_angle_deg);
     for (std::size_t i = 0; i < det_.size(); ++i) {
       const Detected& d = det_[i];
       if (i == i1 || i == i2) {
@@ -369,7 +414,7 @@ class Search {
       for (std::size_t k = 0; k < vis.size(); ++k) {
         const Seg2& m = moved[k];
         if (vis[k].index == j1 || vis[k].index == j2) continue;
-        if (std::abs(wrap_half(d.u.angle() - m.angle())) > rad(o_.consistency_angle_deg)) continue;
+        if (std::abs(wrap_half(d.angle - vis[k].angle - psi)) > cons_rad) continue;
         const double dist = std::max(line_distance(m, d.u.a), line_distance(m, d.u.b));
         if (dist > best_d) continue;
         const double tm = along(m, d.u.mid());
@@ -395,8 +440,8 @@ class Search {
   [[nodiscard]] bool two_directions(const std::vector<std::pair<int, int>>& set) const {
     for (std::size_t i = 0; i < set.size(); ++i) {
       for (std::size_t j = i + 1; j < set.size(); ++j) {
-        const double a = wrap_half(det_[static_cast<std::size_t>(set[i].first)].u.angle() -
-                                   det_[static_cast<std::size_t>(set[j].first)].u.angle());
+        const double a = wrap_half(det_[static_cast<std::size_t>(set[i].first)].angle -
+                                   det_[static_cast<std::size_t>(set[j].first)].angle);
         if (std::abs(a) >= rad(o_.parallel_deg)) return true;
       }
     }
@@ -410,6 +455,7 @@ class Search {
       LineCorrespondence lc;
       lc.image = det_[static_cast<std::size_t>(i)].n;
       lc.model = model_.segments_m[static_cast<std::size_t>(j)];
+      lc.weight = det_[static_cast<std::size_t>(i)].weight;
       c.push_back(lc);
     }
     return c;
@@ -426,8 +472,19 @@ class Search {
   const std::optional<camera::PosePrior>& prior_;
   const InitialiserOptions& o_;
   SupportCounter& support_;
-  std::vector<Alignment> aligns_;
+  double line_support_;
+  std::vector<Alignment> aligns_;                  // the current start's alignments
+  std::vector<std::vector<Alignment>> per_start_;  // each start's best, best first
 };
+
+Vector3d model_centre(const camera::LineModel& model) {
+  Vector3d lo = Vector3d::Constant(1e300), hi = Vector3d::Constant(-1e300);
+  for (const auto& s : model.segments_m) {
+    lo = lo.cwiseMin(s.a_m).cwiseMin(s.b_m);
+    hi = hi.cwiseMax(s.a_m).cwiseMax(s.b_m);
+  }
+  return 0.5 * (lo + hi);
+}
 
 // Without a prior: view directions on a Fibonacci sphere (the camera looks at the model's centre from each),
 // each with the depth at which the model's projected extent matches the detected lines' extent.
@@ -508,14 +565,17 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
     d.n.a_n = camera.pixel_to_normalised(l.segment_px.a_px);
     d.n.b_n = camera.pixel_to_normalised(l.segment_px.b_px);
     d.length = d.u.length();
+    d.angle = d.u.angle();
     if (!d.u.a.allFinite() || !d.u.b.allFinite() || !d.n.a_n.allFinite() || !d.n.b_n.allFinite()) continue;
+    d.weight = static_cast<double>(l.support);
     det.push_back(d);
     line_support += static_cast<double>(l.support);
   }
+  for (Detected& d : det) d.weight = std::max(1e-3, d.weight * static_cast<double>(det.size()) / line_support);
   bool two_dirs = false;
   for (std::size_t i = 0; i < det.size() && !two_dirs; ++i) {
     for (std::size_t j = i + 1; j < det.size() && !two_dirs; ++j) {
-      two_dirs = std::abs(wrap_half(det[i].u.angle() - det[j].u.angle())) >= rad(options.parallel_deg);
+      two_dirs = std::abs(wrap_half(det[i].angle - det[j].angle)) >= rad(options.parallel_deg);
     }
   }
   if (!two_dirs) {
@@ -525,10 +585,26 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
   }
 
   SupportCounter support(events, camera, options.support_band_px);
-  Search search(det, camera, model, prior, options, support);
+  Search search(det, camera, model, prior, options, support, line_support);
   std::vector<camera::Pose> starts;
   if (prior) {
+    // The prior and its tilts about the camera's x and y axes (through the model's centre): the 2D alignment
+    // absorbs shifts and in-plane turns, not the change of a 3D model's appearance under out-of-plane turns.
+    const double range = std::min(options.prior_search_deg, prior->angle_tolerance_deg);
+    const int steps = options.prior_step_deg > 0 ? static_cast<int>(std::floor(range / options.prior_step_deg)) : 0;
+    const Vector3d c = prior->pose.apply(model_centre(model));
     starts.push_back(prior->pose);
+    for (int ix = -steps; ix <= steps; ++ix) {
+      for (int iy = -steps; iy <= steps; ++iy) {
+        if (ix == 0 && iy == 0) continue;
+        const Eigen::Quaterniond R = Eigen::AngleAxisd(rad(ix * options.prior_step_deg), Vector3d::UnitX()) *
+                                     Eigen::AngleAxisd(rad(iy * options.prior_step_deg), Vector3d::UnitY());
+        camera::Pose p;
+        p.q_cam_model = (R * prior->pose.q_cam_model).normalized();
+        p.t_cam_model_m = R * (prior->pose.t_cam_model_m - c) + c;
+        starts.push_back(p);
+      }
+    }
   } else {
     starts = pseudo_priors(det, camera, model, options.view_samples);
   }

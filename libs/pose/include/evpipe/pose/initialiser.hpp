@@ -36,6 +36,13 @@ struct InitialiserOptions {
   /// Hypotheses: a detected line may match a projected model segment when their image angles differ by at
   /// most min(prior angle tolerance, this) (degrees). Ignored without a prior (any in-plane rotation).
   double max_match_angle_deg = 35.0;
+  /// Model segments projected by a pseudo-prior up to this far outside the image are hypothesis candidates
+  /// (a far prior shifts the projection by ~f tan(angle error): what it puts outside may be in view).
+  double hypothesis_margin_px = 150.0;
+  /// With a prior, pseudo-priors: the prior tilted about the camera's x and y axes (through the model's
+  /// centre) in steps of prior_step_deg up to min(prior_search_deg, the prior's angle tolerance) each way.
+  double prior_step_deg = 15.0;
+  double prior_search_deg = 15.0;
   /// The longest this-many detected lines seed the 2D alignments.
   std::size_t seed_lines = 8;
   /// 2D alignment consistency: a detected line agrees with an aligned model segment when the angles differ by
@@ -43,17 +50,22 @@ struct InitialiserOptions {
   /// distance from the alignment's anchor) of the segment's line (the alignment ignores scale and perspective).
   double consistency_angle_deg = 8.0;
   double consistency_px = 8.0;
-  double consistency_scale = 0.15;
+  double consistency_scale = 0.25;
   /// Alignments (best first by consistent line length) that RANSAC draws from, per pseudo-prior.
-  std::size_t alignments = 24;
+  std::size_t alignments = 32;
   /// Minimal sets (4 correspondences, >= 2 directions) drawn per alignment, plus one solve on its whole set.
   int draws_per_alignment = 4;
-  /// Poses (best support first) re-associated and re-solved on all their inlier correspondences.
+  /// RANSAC stops early once a pose explains this share of the events supporting the detected lines.
+  double early_stop_share = 0.8;
+  /// Poses (best support first) re-associated and re-solved on all their inlier correspondences (those that
+  /// explain at least half as many events as the best).
   std::size_t refine_candidates = 4;
   /// Re-association at a pose: a detected line is an inlier of a model segment when both its endpoints lie
   /// within inlier_px of the segment's image line and the angle is below inlier_angle_deg.
   double inlier_px = 3.0;
   double inlier_angle_deg = 5.0;
+  /// Huber scale (pixels) of the LM refinement in the re-solve on all inliers.
+  double refine_huber_px = 1.5;
   /// Re-associate / re-solve rounds.
   int refine_rounds = 3;
   /// Events within this distance (pixels, measured image, distortion included) of a projected model segment
