@@ -1,0 +1,89 @@
+// One tracking update (track_window) on evsim windows: the roadheader wireframe at 0.8 m with 1 Hz/px BA noise,
+// 30 ms (the paper's window) and 5 ms windows, from a 1 cm / 2 deg perturbed prediction, default options.
+// Goal (issue 5): <= 1 ms per update on a 30 ms window at typical event rates. Build in Release.
+
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "evpipe/camera/camera_model.hpp"
+#include "evpipe/camera/line_model.hpp"
+#include "evpipe/pose/tracker.hpp"
+#include "evpipe/sim/noise.hpp"
+#include "evpipe/sim/target3d.hpp"
+
+using namespace evpipe;
+
+namespace {
+
+struct Setup {
+  camera::CameraModel cam;
+  camera::LineModel model;
+  std::vector<Event> events;
+  camera::Pose start;
+};
+
+Setup make(const std::string& model_name, std::int64_t window_us, double noise_hz) {
+  Setup s;
+  const std::string cfg = std::string(EVPIPE_SOURCE_DIR) + "/config/";
+  s.cam = camera::load_camera(cfg + "davis346.yaml");
+  s.model = camera::load_line_model(cfg + model_name);
+  sim::TargetScene scene;
+  scene.camera = s.cam;
+  scene.model = s.model;
+  sim::MotionOptions mo;
+  mo.base = sim::facing_pose(s.model, 0.8, sim::default_view(s.model));
+  mo.pivot_model_m = sim::bbox_centre(s.model);
+  mo.max_speed_m_s = 0.3;  // a faster motion than the default: more events per window
+  std::mt19937_64 rng(99);
+  scene.trajectory = sim::generate_motion(0, 200'000, mo, rng);
+  const std::int64_t t0 = 100'000;
+  s.events = sim::render_target(scene, t0, t0 + window_us, rng);
+  sim::NoiseOptions no;
+  no.rate_hz_per_pixel = noise_hz;
+  auto noise = sim::background_activity(SensorGeometry{s.cam.width, s.cam.height}, t0, t0 + window_us, no, rng);
+  s.events.insert(s.events.end(), noise.begin(), noise.end());
+  std::stable_sort(s.events.begin(), s.events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  const auto truth = scene.trajectory[static_cast<std::size_t>((t0 + window_us / 2) / 1000)].pose;
+  s.start = sim::perturb_pose(truth, 0.01, 2.0, rng);
+  return s;
+}
+
+void BM_TrackWindow(benchmark::State& state, const std::string& model_name, std::int64_t window_us, bool lopet) {
+  const Setup s = make(model_name, window_us, 1.0);
+  const pose::UndistortMap map(s.cam);
+  pose::TrackerOptions o;
+  o.lopet_compatible = lopet;
+  pose::TrackUpdate up;
+  for (auto _ : state) {
+    up = pose::track_window(s.events, map, s.model, s.start, o);
+    benchmark::DoNotOptimize(up);
+  }
+  state.counters["events"] = static_cast<double>(s.events.size());
+  state.counters["iterations"] = up.iterations;
+  state.counters["inliers"] = static_cast<double>(up.inliers);
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(s.events.size()));
+}
+
+void BM_UndistortMapBuild(benchmark::State& state) {
+  const auto cam = camera::load_camera(std::string(EVPIPE_SOURCE_DIR) + "/config/davis346.yaml");
+  for (auto _ : state) {
+    pose::UndistortMap map(cam);
+    benchmark::DoNotOptimize(map);
+  }
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(BM_TrackWindow, roadheader_30ms, std::string("roadheader-wireframe.yaml"), 30'000, false)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TrackWindow, roadheader_5ms, std::string("roadheader-wireframe.yaml"), 5'000, false)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TrackWindow, planar_30ms, std::string("target-planar.yaml"), 30'000, false)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TrackWindow, roadheader_30ms_lopet, std::string("roadheader-wireframe.yaml"), 30'000, true)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_UndistortMapBuild)->Unit(benchmark::kMillisecond);
