@@ -364,7 +364,7 @@ TEST(PipelineGraph, BadOptionsAreRejected) {
 TEST(PipelineGraph, LiveOverloadDropsAndCountsButStaysBounded) {
   const std::uint32_t seed = 3;
   SCOPED_TRACE("seed " + std::to_string(seed));
-  const auto batches = synthetic(seed, 3000, 1000, 1, 5);  // 3 Mev, ~7.5 s of sensor time, read unpaced
+  const auto batches = synthetic(seed, 1500, 1000, 1, 5);  // 1.5 Mev, ~3.8 s of sensor time, read unpaced
   std::uint64_t total = 0;
   for (const auto& b : batches) total += b->size();
   RecordingProcessor processor;
@@ -404,7 +404,7 @@ TEST(PipelineGraph, LiveOverloadDropsAndCountsButStaysBounded) {
 
 TEST(PipelineGraph, StopWithFullQueuesEndsWithinTheBound) {
   // Replay, lossless queues, a processor far too slow: every queue fills and the reader waits.
-  const auto batches = synthetic(5, 5000, 1000);
+  const auto batches = synthetic(5, 1500, 1000);
   RecordingProcessor processor;
   processor.delay = 20ms;
   processor.record = false;
