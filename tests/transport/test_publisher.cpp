@@ -247,3 +247,22 @@ TEST(LcmPublisher, EffectiveUrl) {
 
 }  // namespace
 }  // namespace evpipe::transport
+
+namespace evpipe::transport {
+namespace {
+
+TEST(LcmCapture, UnsubscribesFromASharedInstanceWhenDestroyed) {
+  auto lcm = std::make_shared<lcm::LCM>("memq://");
+  LcmPublisher pub(lcm, "P", "S");
+  {
+    LcmCapture first(lcm);
+    first.subscribe("P");
+  }  // gone: its callback must not run for the next message
+  LcmCapture second(lcm);
+  second.subscribe("P");
+  ASSERT_TRUE(pub.publish_pose(PoseRecord{}));
+  EXPECT_EQ(second.wait_for(1, std::chrono::seconds(5)), 1U);
+}
+
+}  // namespace
+}  // namespace evpipe::transport

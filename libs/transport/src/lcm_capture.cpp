@@ -10,20 +10,26 @@
 
 namespace evpipe::transport {
 
+// Subscriptions go through LCM's C API: GCC 12's -fsanitize=vptr (our ASan+UBSan build) miscompiles lcm-cpp's
+// templated subscription callbacks (LCMMHUntypedSubscription::cb_func reads a null handler and crashes); a plain C
+// callback has no vtable to check. Measured with a 15-line memq:// program; clang is not affected.
 struct LcmCapture::Handler {
   LcmCapture* owner;
-  void on_raw(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  std::vector<lcm_subscription_t*> subscriptions;
+
+  static void on_raw(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+    LcmCapture* self = static_cast<Handler*>(user)->owner;
     ReceivedMessage m;
     m.channel = channel;
     const auto* p = static_cast<const std::uint8_t*>(rbuf->data);
     m.data.assign(p, p + rbuf->data_size);
     m.recv_utime_us = rbuf->recv_utime;
-    ++owner->received_;
-    if (owner->callback_) {
-      owner->callback_(m);
+    ++self->received_;
+    if (self->callback_) {
+      self->callback_(m);
     }
-    if (owner->keep_) {
-      owner->messages_.push_back(std::move(m));
+    if (self->keep_) {
+      self->messages_.push_back(std::move(m));
     }
   }
 };
@@ -31,9 +37,16 @@ struct LcmCapture::Handler {
 LcmCapture::LcmCapture(const std::string& url) : LcmCapture(std::make_shared<lcm::LCM>(url)) {}
 
 LcmCapture::LcmCapture(std::shared_ptr<lcm::LCM> lcm)
-    : lcm_(std::move(lcm)), handler_(std::make_unique<Handler>(Handler{this})) {}
+    : lcm_(std::move(lcm)), handler_(std::make_unique<Handler>(Handler{this, {}})) {}
 
-LcmCapture::~LcmCapture() = default;
+LcmCapture::~LcmCapture() {
+  // A shared instance outlives us: no callback may be left pointing at this object.
+  if (lcm_ && lcm_->good()) {
+    for (lcm_subscription_t* sub : handler_->subscriptions) {
+      lcm_unsubscribe(lcm_->getUnderlyingLCM(), sub);
+    }
+  }
+}
 
 bool LcmCapture::good() const {
   return lcm_ && lcm_->good();
@@ -43,7 +56,12 @@ void LcmCapture::subscribe(const std::string& channel_regex) {
   if (!good()) {
     throw std::runtime_error(fmt::format("LCM capture: cannot subscribe to {}: LCM is not usable", channel_regex));
   }
-  lcm_->subscribe(channel_regex, &Handler::on_raw, handler_.get());
+  lcm_subscription_t* sub =
+      lcm_subscribe(lcm_->getUnderlyingLCM(), channel_regex.c_str(), &Handler::on_raw, handler_.get());
+  if (sub == nullptr) {
+    throw std::runtime_error(fmt::format("LCM capture: cannot subscribe to {}", channel_regex));
+  }
+  handler_->subscriptions.push_back(sub);
 }
 
 void LcmCapture::on_message(std::function<void(const ReceivedMessage&)> callback) {
