@@ -134,11 +134,13 @@ class Ctx:
 # ---- scenes --------------------------------------------------------------------------------------------------
 
 
-def file_digest(path: str) -> str:
+def inputs_digest(paths: list[Path]) -> str:
+    """Digest of the evsim binary and the configuration files the scenes are made from: the scene cache's key."""
     h = hashlib.sha1()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
+    for path in paths:
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
     return h.hexdigest()[:12]
 
 
@@ -485,7 +487,9 @@ def main() -> None:
 
     work = Path(a.work)
     ctx = Ctx(exes["evsim"], exes["evpipe"], exes["evpose-eval"], work,
-              work / f"scenes-{file_digest(exes['evsim'])}", a.jobs, a.timeout, a.config, a.evpipe_arg)
+              work / ("scenes-" + inputs_digest([Path(exes["evsim"]), ROOT / "config" / "davis346.yaml"] +
+                                               [ROOT / "config" / m.file for m in MODELS])),
+              a.jobs, a.timeout, a.config, a.evpipe_arg)
     ctx.scenes_dir.mkdir(parents=True, exist_ok=True)
     distances = QUICK_DISTANCES if a.quick else DISTANCES
     noise_levels = QUICK_NOISE_HZ if a.quick else NOISE_HZ
