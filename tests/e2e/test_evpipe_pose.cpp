@@ -103,7 +103,10 @@ TEST_P(EvpipePose, EstimatesPosesCloseToTheTruth) {
 
 INSTANTIATE_TEST_SUITE_P(Scenes, EvpipePose,
                          ::testing::Values(std::tuple{"target-planar.yaml", 0.8, 1.0},
-                                           std::tuple{"roadheader-wireframe.yaml", 1.0, 5.0}));
+                                           std::tuple{"roadheader-wireframe.yaml", 1.0, 5.0}),
+                         [](const auto& info) {
+                           return std::string(std::get<0>(info.param)[0] == 't' ? "planar" : "roadheader");
+                         });
 
 TEST(EvpipePoseErrors, BadPoseInputsAreConfigurationErrors) {
   const auto dir = evpipe::testing::temp_dir("e2e-pose-errors");

@@ -130,4 +130,7 @@ TEST_P(EstimatorScenes, InitialisesTracksLosesAndRecovers) {
 
 INSTANTIATE_TEST_SUITE_P(Targets, EstimatorScenes,
                          ::testing::Values(std::pair{"target-planar.yaml", 0.8},
-                                           std::pair{"roadheader-wireframe.yaml", 1.0}));
+                                           std::pair{"roadheader-wireframe.yaml", 1.0}),
+                         [](const auto& info) {
+                           return std::string(info.param.first[0] == 't' ? "planar" : "roadheader");
+                         });
