@@ -127,7 +127,8 @@ void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
 }
 
 EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us) const {
-  if (window.size() >= options_.track_min_events) return window;
+  // A rich window alone; an (almost) empty one alone too: the target has gone, old events must not hide that.
+  if (window.size() >= options_.track_min_events || window.size() < options_.track_min_window_events) return window;
   // A sparse window: the newest track_min_events events, but none older than track_max_span_us.
   auto first = recent_.end() - static_cast<std::ptrdiff_t>(std::min(recent_.size(), options_.track_min_events));
   while (first != recent_.end() && first->t_us < t_us - options_.track_max_span_us) ++first;

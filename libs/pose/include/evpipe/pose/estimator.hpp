@@ -38,6 +38,9 @@ struct EstimatorOptions {
   /// events instead, none older than track_max_span_us (pose.md §8: windows sized by count, capped in time).
   std::size_t track_min_events = 1500;
   std::int64_t track_max_span_us = 100'000;
+  /// ... but only when the window has at least this many events of its own (a window without the target is
+  /// not tracked on the target's past events).
+  std::size_t track_min_window_events = 10;
   /// Re-initialisation after a loss searches around the last good pose with these tolerances.
   double reinit_position_tolerance_m = 0.3;
   double reinit_angle_tolerance_deg = 45.0;
