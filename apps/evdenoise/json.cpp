@@ -6,11 +6,11 @@
 #include <cmath>
 #include <regex>
 
-#include "json_quote.hpp"
+#include "evpipe/core/json_quote.hpp"
 
 namespace evdenoise {
 
-using evpipe::app::json_quote;
+using evpipe::json_quote;
 
 void JsonWriter::before_value() {
   if (after_key_) {

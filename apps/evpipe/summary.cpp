@@ -1,6 +1,6 @@
 #include "summary.hpp"
 
-#include "json_quote.hpp"
+#include "evpipe/core/json_quote.hpp"
 
 #include <fmt/format.h>
 

@@ -19,8 +19,8 @@
 
 #include "evpipe/camera/error.hpp"
 #include "evpipe/camera/trajectory.hpp"
+#include "evpipe/core/json_quote.hpp"
 #include "evpipe/metrics/trajectory.hpp"
-#include "json_quote.hpp"
 #include "plot.hpp"
 
 using namespace evpipe;
@@ -90,7 +90,7 @@ std::string json_stats(const metrics::ErrorStats& s) {
 }
 
 void print_json(const Options& o, const metrics::TrajectoryEval& r) {
-  using app::json_quote;
+  using evpipe::json_quote;
   std::string out = "{";
   out += fmt::format(R"("estimate":{},"truth":{},"only_tracking":{},"max_gap_us":{},)", json_quote(o.estimate),
                      json_quote(o.truth), o.only_tracking ? "true" : "false", o.max_gap_us);

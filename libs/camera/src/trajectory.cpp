@@ -69,6 +69,13 @@ bool skippable(std::string_view line) {
   return t.empty() || t.front() == '#';
 }
 
+/// Reads up to the first line that is not empty or a comment (the header) into `line`; throws when there is none.
+void read_header_line(BoundedLineReader& reader, std::string& line, const std::string& path) {
+  while (reader.next(line))
+    if (!skippable(line)) return;
+  throw ModelError(path, "", "empty file: no header line t_us,x_m,y_m,z_m,qw,qx,qy,qz");
+}
+
 }  // namespace
 
 std::vector<StampedPose> read_trajectory_csv(const std::string& path) {
@@ -78,14 +85,7 @@ std::vector<StampedPose> read_trajectory_csv(const std::string& path) {
   std::string line;
 
   // Header: the eight columns by name, in any order; other columns are ignored.
-  bool have_header = false;
-  while (reader.next(line)) {
-    if (!skippable(line)) {
-      have_header = true;
-      break;
-    }
-  }
-  if (!have_header) throw ModelError(path, "", "empty file: no header line t_us,x_m,y_m,z_m,qw,qx,qy,qz");
+  read_header_line(reader, line, path);
   const std::size_t header_line = reader.line_no();
   const std::string header_text(detail::strip_bom(line));
   const std::vector<std::string_view> header = split_cells(header_text);
@@ -151,14 +151,7 @@ std::optional<std::vector<std::string>> read_trajectory_column(const std::string
   if (!in) throw ModelError(path, "", fmt::format("cannot open: {}", std::strerror(errno)));
   BoundedLineReader reader(in, path);
   std::string line;
-  bool have_header = false;
-  while (reader.next(line)) {
-    if (!skippable(line)) {
-      have_header = true;
-      break;
-    }
-  }
-  if (!have_header) throw ModelError(path, "", "empty file: no header line t_us,x_m,y_m,z_m,qw,qx,qy,qz");
+  read_header_line(reader, line, path);
   const std::string header_text(detail::strip_bom(line));
   const std::vector<std::string_view> header = split_cells(header_text);
   const auto it = std::find(header.begin(), header.end(), column);

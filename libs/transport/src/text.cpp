@@ -1,5 +1,7 @@
 #include "evpipe/transport/text.hpp"
 
+#include "evpipe/core/json_quote.hpp"
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -10,27 +12,7 @@ namespace evpipe::transport {
 namespace {
 
 void put_str(std::string& out, std::string_view s) {
-  out += '"';
-  for (const char c : s) {
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          fmt::format_to(std::back_inserter(out), "\\u{:04x}", static_cast<unsigned>(c));
-        } else {
-          out += c;
-        }
-    }
-  }
-  out += '"';
+  out += json_quote(s);
 }
 
 void put_num(std::string& out, double v) {

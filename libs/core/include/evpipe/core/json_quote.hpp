@@ -1,12 +1,13 @@
 #pragma once
-// JSON string quoting shared by the programs' machine-readable outputs (evpipe --json, evdenoise --metrics).
+// JSON string quoting shared by every machine-readable output (evpipe --json, evdenoise --metrics, evpose-eval
+// --json, evpipe-lcm-echo).
 
 #include <fmt/format.h>
 
 #include <string>
 #include <string_view>
 
-namespace evpipe::app {
+namespace evpipe {
 
 /// `s` as a JSON string literal, quotes included; control characters escaped.
 inline std::string json_quote(std::string_view s) {
@@ -39,4 +40,4 @@ inline std::string json_quote(std::string_view s) {
   return out + "\"";
 }
 
-}  // namespace evpipe::app
+}  // namespace evpipe
