@@ -86,7 +86,11 @@ PoseEstimate PoseEstimator::initialise(EventSpan window, std::int64_t t_end_us) 
     around.angle_tolerance_deg = options_.reinit_angle_tolerance_deg;
     search = around;
   }
-  const InitResult init = initialise_pose(window, camera_, model_, search, options_.init);
+  InitResult init = initialise_pose(window, camera_, model_, search, options_.init);
+  // The last good pose may itself have been wrong (a track that drifted before it was declared lost): then
+  // search around the configured prior too, every other attempt (the prior is where the target is installed).
+  if (!init.ok && last_ && prior_ && counters_.init_attempts % 2 == 0)
+    init = initialise_pose(window, camera_, model_, prior_, options_.init);
   if (!init.ok) {
     out.note = "initialisation: " + init.message;
     return out;
