@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <numeric>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -328,8 +329,16 @@ class Search {
       }
     }
     if (poses.empty()) return std::nullopt;
-    std::stable_sort(poses.begin(), poses.end(),
-                     [](const Scored& l, const Scored& r) { return l.explained > r.explained; });
+    // Sorted through indices: libstdc++'s stable_sort buffer ignores over-alignment, and Scored holds an Eigen
+    // quaternion that needs 32-byte alignment under AVX (-march=native crashed here).
+    std::vector<std::size_t> order(poses.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t l, std::size_t r) { return poses[l].explained > poses[r].explained; });
+    std::vector<Scored> sorted;
+    sorted.reserve(poses.size());
+    for (const std::size_t i : order) sorted.push_back(poses[i]);
+    poses = std::move(sorted);
     // The re-solve on all inliers: OPnL, then LM (line_refine.hpp) with a Huber loss so that one wrong
     // association cannot pull the pose.
     OpnlOptions full;
