@@ -18,6 +18,9 @@ void EstimatorOptions::validate() const {
   if (!(reinit_position_tolerance_m > 0.0) || !std::isfinite(reinit_position_tolerance_m))
     throw std::invalid_argument(
         fmt::format("pose.reinit_position_tolerance_m: must be > 0, got {}", reinit_position_tolerance_m));
+  if (!(max_step_m > 0.0) || !(max_step_deg > 0.0))
+    throw std::invalid_argument(
+        fmt::format("pose.max_step_m / max_step_deg: must be > 0, got {} / {}", max_step_m, max_step_deg));
   if (init_accumulate_us < 0)
     throw std::invalid_argument(fmt::format("pose.init_accumulate_us: must be >= 0, got {}", init_accumulate_us));
   if (!(reinit_angle_tolerance_deg > 0.0 && reinit_angle_tolerance_deg <= 180.0))
@@ -152,7 +155,11 @@ PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
     const TrackUpdate u = track_window(events, camera_, model_, predicted, options_.track);
     out.t_us = t_end_us;
     out.window_events = events.size();
-    if (u.healthy) {
+    // A target cannot jump: an update far from the prediction has locked onto other edges (a wrong local
+    // minimum the per-window health test cannot see).
+    const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, predicted) > options_.max_step_m ||
+                                      camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
+    if (u.healthy && !jumped) {
       unhealthy_in_a_row_ = 0;
       previous_ = last_;
       last_ = camera::StampedPose{t_end_us, u.T_cam_model};
@@ -168,7 +175,10 @@ PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
       out.T_cam_model = last_->pose;  // hold the last good pose; not published as valid
       out.inliers = u.inliers;
       out.sigma_px = u.sigma_px;
-      out.note = "tracking: " + u.reason;
+      out.note = jumped ? fmt::format("tracking: the update moved {:.0f} mm / {:.1f} deg from the prediction",
+                                      1000.0 * camera::translation_distance_m(u.T_cam_model, predicted),
+                                      camera::rotation_angle_deg(u.T_cam_model, predicted))
+                        : "tracking: " + u.reason;
       if (unhealthy_in_a_row_ >= options_.lost_after_windows) {
         set_status(TrackStatus::lost);
         previous_.reset();

@@ -44,6 +44,10 @@ struct EstimatorOptions {
   /// Re-initialisation after a loss searches around the last good pose with these tolerances.
   double reinit_position_tolerance_m = 0.3;
   double reinit_angle_tolerance_deg = 45.0;
+  /// Largest change from the predicted pose one update may make; a bigger one counts as unhealthy (the tracker
+  /// locked onto other edges). Per window: 0.05 m and 10 deg are 1.7 m/s and 330 deg/s at 30 ms windows.
+  double max_step_m = 0.05;
+  double max_step_deg = 10.0;
   /// Predict the next pose by constant velocity from the last two tracked poses (else: the last pose).
   bool constant_velocity = true;
 
