@@ -6,9 +6,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <numeric>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <random>
 #include <utility>
 
