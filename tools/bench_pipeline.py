@@ -48,6 +48,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from evpipe_tool_output import Failure, json_object, last_line
+
 ROOT = Path(__file__).resolve().parent.parent
 PROG = "bench_pipeline.py"
 
@@ -63,30 +65,9 @@ DENOISERS = ["curvature", "baf", "none"]
 UDPM_URL = "udpm://239.255.76.67:7667?ttl=0"  # LCM's default group and port, kept on the host
 
 
-class Failure(Exception):
-    pass
-
-
 def fail_exit(msg: str, code: int = 1) -> None:
     print(f"{PROG}: {msg}", file=sys.stderr)
     sys.exit(code)
-
-
-def last_line(text: str) -> str:
-    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
-    return lines[-1] if lines else ""
-
-
-def json_object(text: str, what: str) -> dict:
-    """The last line of `text` that is a JSON object (evpipe --json prints one object on a line)."""
-    for ln in reversed(text.strip().splitlines()):
-        ln = ln.strip()
-        if ln.startswith("{"):
-            try:
-                return json.loads(ln)
-            except json.JSONDecodeError as e:
-                raise Failure(f"{what}: bad JSON ({e}): {ln[:200]}")
-    raise Failure(f"{what}: no JSON object in its output: {text.strip()[:200]!r}")
 
 
 # ---- scenes --------------------------------------------------------------------------------------------------

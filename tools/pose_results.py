@@ -36,6 +36,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from evpipe_tool_output import Failure, json_object, last_line
+
 ROOT = Path(__file__).resolve().parent.parent
 PROG = "pose_results.py"
 
@@ -72,10 +74,6 @@ RATE_FIELDS = ("pose_rate_hz", "update_rate_hz")
 UNSUPPORTED_HINT = "not part of this build"  # evpipe's refusal while the pose stage is not wired in
 
 
-class Failure(Exception):
-    pass
-
-
 def fail_exit(msg: str) -> None:
     sys.exit(f"{PROG}: {msg}")
 
@@ -87,23 +85,6 @@ def run(cmd: list[str], timeout: float | None = None) -> subprocess.CompletedPro
         raise Failure(f"timed out after {timeout:.0f} s: {' '.join(cmd)}")
     except OSError as e:
         raise Failure(f"cannot run {cmd[0]}: {e}")
-
-
-def last_line(text: str) -> str:
-    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
-    return lines[-1] if lines else ""
-
-
-def json_object(text: str, what: str) -> dict:
-    """The last line of `text` that is a JSON object (tools print one object on a line)."""
-    for ln in reversed(text.strip().splitlines()):
-        ln = ln.strip()
-        if ln.startswith("{"):
-            try:
-                return json.loads(ln)
-            except json.JSONDecodeError as e:
-                raise Failure(f"{what}: bad JSON ({e}): {ln[:200]}")
-    raise Failure(f"{what}: no JSON object in its output: {text.strip()[:200]!r}")
 
 
 @dataclass(frozen=True)
