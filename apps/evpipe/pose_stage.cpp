@@ -51,14 +51,13 @@ pose::PoseEstimate PoseStage::process(const EventWindow& window) {
     window.for_each([this](const Event& e) { scratch_.push_back(e); });
     events = scratch_;
   }
-  if (window.starts_segment && summary_.windows > 0) estimator_.reset();  // clock jumped: the track is stale
+  if (window.starts_segment && estimator_.counters().windows > 0)
+    estimator_.reset();  // clock jumped: the track is stale
   const auto t0 = std::chrono::steady_clock::now();
   // The pose is fitted to all events of the window: it best represents the window's middle, which is the
   // time it is stamped with (a 30 ms window lags its end by 15 ms).
   auto estimate = estimator_.process(events, window.t0_us + (window.t1_us - window.t0_us) / 2);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  ++summary_.windows;
-  ++summary_.windows_by_status[static_cast<int>(estimate.status)];
   if (estimate.initialised_now && summary_.first_init_ms == 0) summary_.first_init_ms = ms;
   if (estimate.pose_valid) {
     if (!estimate.initialised_now) summary_.update_ms.push_back(ms);
@@ -81,6 +80,8 @@ void PoseStage::write(const pose::PoseEstimate& e) {
 PoseSummary PoseStage::summary() const {
   PoseSummary s = summary_;
   const auto& c = estimator_.counters();
+  s.windows = c.windows;
+  for (int i = 0; i < 3; ++i) s.windows_by_status[i] = c.windows_by_status[i];
   s.init_attempts = c.init_attempts;
   s.init_successes = c.init_successes;
   s.losses = c.losses;

@@ -30,15 +30,7 @@ Run run(const std::string& cmd) {
   return evpipe::testing::run(cmd, evpipe::testing::temp_dir("e2e"));
 }
 
-// Minimal extraction of a number/bool/string field from evpipe's flat --json summary.
-std::string field(const std::string& json, const std::string& key) {
-  const std::regex re("\"" + key + "\":(\"[^\"]*\"|[^,}]*)");
-  std::smatch m;
-  if (!std::regex_search(json, m, re)) return "<missing " + key + ">";
-  std::string v = m[1];
-  if (!v.empty() && v.front() == '"') v = v.substr(1, v.size() - 2);
-  return v;
-}
+using evpipe::testing::json_field;
 
 const std::string kEvpipe = EVPIPE_EXE;
 const std::string kEvconvert = EVCONVERT_EXE;
@@ -50,30 +42,30 @@ TEST(Evpipe, ReplaysTheBundledSample) {
   const auto r = run(kEvpipe + " --replay " + q(kSample) + " --speed max --json");
   ASSERT_EQ(r.status, 0) << r.err;
   const auto expected = evpipe::io::read_all(kSample);
-  EXPECT_EQ(field(r.out, "events"), std::to_string(expected.events.size()));
-  EXPECT_EQ(field(r.out, "format"), "aedat4");
-  EXPECT_EQ(field(r.out, "width"), "346");
-  EXPECT_EQ(field(r.out, "height"), "260");
-  EXPECT_EQ(field(r.out, "first_t_us"), std::to_string(expected.events.front().t_us));
-  EXPECT_EQ(field(r.out, "last_t_us"), std::to_string(expected.events.back().t_us));
-  EXPECT_EQ(field(r.out, "out_of_order"), "0");
-  EXPECT_EQ(field(r.out, "error"), "");
+  EXPECT_EQ(json_field(r.out, "events"), std::to_string(expected.events.size()));
+  EXPECT_EQ(json_field(r.out, "format"), "aedat4");
+  EXPECT_EQ(json_field(r.out, "width"), "346");
+  EXPECT_EQ(json_field(r.out, "height"), "260");
+  EXPECT_EQ(json_field(r.out, "first_t_us"), std::to_string(expected.events.front().t_us));
+  EXPECT_EQ(json_field(r.out, "last_t_us"), std::to_string(expected.events.back().t_us));
+  EXPECT_EQ(json_field(r.out, "out_of_order"), "0");
+  EXPECT_EQ(json_field(r.out, "error"), "");
   // The paper's filter by default; 30 ms fixed windows over a 1.5 s recording: each kept event in exactly one.
-  EXPECT_EQ(field(r.out, "denoise_filter"), "curvature");
-  EXPECT_EQ(field(r.out, "denoise_in"), std::to_string(expected.events.size()));
-  const auto kept = std::stoull(field(r.out, "denoise_kept"));
+  EXPECT_EQ(json_field(r.out, "denoise_filter"), "curvature");
+  EXPECT_EQ(json_field(r.out, "denoise_in"), std::to_string(expected.events.size()));
+  const auto kept = std::stoull(json_field(r.out, "denoise_kept"));
   EXPECT_GT(kept, expected.events.size() / 4);
   EXPECT_LT(kept, expected.events.size());
-  EXPECT_EQ(field(r.out, "window_events"), std::to_string(kept));
-  EXPECT_EQ(field(r.out, "windows"), "50");
+  EXPECT_EQ(json_field(r.out, "window_events"), std::to_string(kept));
+  EXPECT_EQ(json_field(r.out, "windows"), "50");
 }
 
 TEST(Evpipe, DenoiseNonePassesEveryEvent) {
   const auto r = run(kEvpipe + " --replay " + q(kSample) + " --speed max --json --denoise none");
   ASSERT_EQ(r.status, 0) << r.err;
   const auto expected = evpipe::io::read_all(kSample);
-  EXPECT_EQ(field(r.out, "denoise_filter"), "none");
-  EXPECT_EQ(field(r.out, "window_events"), std::to_string(expected.events.size()));
+  EXPECT_EQ(json_field(r.out, "denoise_filter"), "none");
+  EXPECT_EQ(json_field(r.out, "window_events"), std::to_string(expected.events.size()));
 }
 
 TEST(Evpipe, BadDenoiseParameterIsAConfigurationError) {
@@ -100,7 +92,7 @@ TEST(Evpipe, RealTimePacingTakesTheRecordingsDuration) {
   // --speed 4 on the 1.5 s sample: at least 0.37 s of wall time (a lower bound only).
   const auto r = run(kEvpipe + " --replay " + q(kSample) + " --speed 4 --json");
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_GE(std::stod(field(r.out, "wall_s")), 0.37);
+  EXPECT_GE(std::stod(json_field(r.out, "wall_s")), 0.37);
 }
 
 TEST(Evpipe, RealRecordingsMatchTheirProvenance) {
@@ -117,9 +109,9 @@ TEST(Evpipe, RealRecordingsMatchTheirProvenance) {
     if (path.empty()) GTEST_SKIP() << "real recordings not available under " << evpipe::testing::shared_data_dir();
     const auto r = run(kEvpipe + " --replay " + q(path) + " --speed max --json");
     ASSERT_EQ(r.status, 0) << c.rel << ": " << r.err;
-    EXPECT_EQ(field(r.out, "events"), c.events) << c.rel;
-    EXPECT_EQ(field(r.out, "first_t_us"), c.first) << c.rel;
-    EXPECT_EQ(field(r.out, "last_t_us"), c.last) << c.rel;
+    EXPECT_EQ(json_field(r.out, "events"), c.events) << c.rel;
+    EXPECT_EQ(json_field(r.out, "first_t_us"), c.first) << c.rel;
+    EXPECT_EQ(json_field(r.out, "last_t_us"), c.last) << c.rel;
   }
 }
 
@@ -154,7 +146,7 @@ TEST(Evpipe, TruncatedFileKeepsWhatWasReadAndSaysWhere) {
   // Recoverable: a warning naming the file, the events before the cut, exit 0.
   EXPECT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.err.find(cut), std::string::npos) << r.err;
-  const auto events = std::stoull(field(r.out, "events"));
+  const auto events = std::stoull(json_field(r.out, "events"));
   EXPECT_GT(events, 0U);
   EXPECT_LT(events, evpipe::io::read_all(kSample).events.size());
 }
@@ -307,7 +299,7 @@ TEST(Evsim, TargetSceneOutputsLoadAndAgree) {
   ASSERT_GT(lines, signal_lines + 10'000U);  // 1 Hz/pixel over 0.4 s: ~36 000 noise events
   r = run(kEvpipe + " --replay " + q(rec) + " --speed max --json");
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_EQ(field(r.out, "events"), std::to_string(lines));
+  EXPECT_EQ(json_field(r.out, "events"), std::to_string(lines));
   const std::string manifest = slurp(dir / "rec.manifest.yaml");
   EXPECT_EQ(manifest_value(manifest, "events", "total"), std::to_string(lines));
   EXPECT_EQ(manifest_value(manifest, "events", "signal"), std::to_string(signal_lines));
@@ -437,7 +429,7 @@ TEST(Evpipe, SigintEndsAPacedReplayPromptly) {
   const auto r = run("timeout --preserve-status -s INT 1 " + kEvpipe + " --replay " + q(path) + " --json");
   const auto wall = std::chrono::steady_clock::now() - t0;
   EXPECT_EQ(r.status, 0) << r.err;
-  EXPECT_EQ(field(r.out, "interrupted"), "true");
-  EXPECT_EQ(field(r.out, "events"), "1");
+  EXPECT_EQ(json_field(r.out, "interrupted"), "true");
+  EXPECT_EQ(json_field(r.out, "events"), "1");
   EXPECT_LT(wall, std::chrono::seconds(10));
 }

@@ -16,7 +16,6 @@
 #include <cmath>
 #include <cstring>
 #include <map>
-#include <regex>
 #include <thread>
 
 #include "evpipe/camera/trajectory.hpp"
@@ -31,12 +30,7 @@ namespace {
 
 const std::string kEvpipe = EVPIPE_EXE;
 
-std::string field(const std::string& json, const std::string& key) {
-  const std::regex re("\"" + key + "\":(\"[^\"]*\"|[^,}]*)");
-  std::smatch m;
-  if (!std::regex_search(json, m, re)) return "<missing " + key + ">";
-  return m[1];
-}
+using evpipe::testing::json_field;
 
 }  // namespace
 
@@ -70,8 +64,8 @@ TEST(EvpipeLcm, EveryPoseArrivesDecodedAndMatchesTheCsvAndTheTruth) {
   const auto poses = capture.poses("EVPIPE_POSE");
   const auto stats = capture.stats("EVPIPE_STATS");
   // Every window's estimate is published (initialising / tracking / lost), none lost on the way.
-  ASSERT_EQ(std::to_string(poses.size()), field(r.out, "lcm_poses")) << r.out;
-  ASSERT_EQ(field(r.out, "windows"), std::to_string(poses.size()));
+  ASSERT_EQ(std::to_string(poses.size()), json_field(r.out, "lcm_poses")) << r.out;
+  ASSERT_EQ(json_field(r.out, "windows"), std::to_string(poses.size()));
   for (std::size_t i = 0; i < poses.size(); ++i) ASSERT_EQ(poses[i].seq, static_cast<std::int64_t>(i));
   EXPECT_GE(stats.size(), 1u);
   EXPECT_EQ(stats.back().source, "replay");

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <regex>
 #include <vector>
 
 #include "evpipe/camera/trajectory.hpp"
@@ -28,14 +27,7 @@ evpipe::testing::Run run(const std::string& cmd) {
   return evpipe::testing::run(cmd, evpipe::testing::temp_dir("e2e-pose"));
 }
 
-std::string field(const std::string& json, const std::string& key) {
-  const std::regex re("\"" + key + "\":(\"[^\"]*\"|[^,}]*)");
-  std::smatch m;
-  if (!std::regex_search(json, m, re)) return "<missing " + key + ">";
-  std::string v = m[1];
-  if (!v.empty() && v.front() == '"') v = v.substr(1, v.size() - 2);
-  return v;
-}
+using evpipe::testing::json_field;
 
 /// A 2 s evsim scene of `model` at `distance_m` with `noise_hz` background activity; returns the stem.
 fs::path make_scene(const std::string& model, double distance_m, double noise_hz, int seed) {
@@ -90,12 +82,12 @@ TEST_P(EvpipePose, EstimatesPosesCloseToTheTruth) {
                      " --camera " + q(stem.string() + ".camera.yaml") + " --model " + q(stem.string() + ".model.yaml") +
                      " --prior " + q(stem.string() + ".prior.yaml") + " --poses-out " + q(poses));
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_EQ(field(r.out, "pose_enabled"), "true");
+  EXPECT_EQ(json_field(r.out, "pose_enabled"), "true");
   const auto est = evpipe::camera::read_trajectory_csv(poses);
   const auto gt = evpipe::camera::read_trajectory_csv(stem.string() + ".gt.csv");
   // 2 s of 30 ms windows = 66; a slow start gathers up to 300 ms of events to initialise.
   EXPECT_GE(est.size(), 40u) << r.out;  // measured 49 (planar, slow: sparse windows) and 66 (roadheader)
-  EXPECT_EQ(field(r.out, "pose_updates"), std::to_string(est.size()));
+  EXPECT_EQ(json_field(r.out, "pose_updates"), std::to_string(est.size()));
   const auto a = ate(est, gt);
   std::cout << model << " " << distance_m << " m " << noise_hz << " Hz/px: " << est.size() << " poses, ATE RMSE "
             << a.rmse_mm << " mm, max " << a.max_mm << " mm\n";
@@ -149,7 +141,7 @@ TEST(EvpipePoseErrors, NoTargetInViewGivesNoPosesAndSaysWhy) {
                      q(config("davis346.yaml")) + " --model " + q(config("target-planar.yaml")) + " --prior " +
                      q(config("prior-example.yaml")) + " --poses-out " + q(poses));
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_EQ(field(r.out, "pose_updates"), "0") << r.out;
-  EXPECT_NE(field(r.out, "pose_note"), "") << r.out;
+  EXPECT_EQ(json_field(r.out, "pose_updates"), "0") << r.out;
+  EXPECT_NE(json_field(r.out, "pose_note"), "") << r.out;
   EXPECT_TRUE(evpipe::camera::read_trajectory_csv(poses).empty());
 }

@@ -29,6 +29,7 @@
 #include <libcaer_stub/fake_device.h>
 
 #include "evpipe/device/davis_source.hpp"
+#include "vector_source.hpp"
 #endif
 
 using namespace evpipe;
@@ -47,28 +48,7 @@ constexpr auto kShutdownBound = 1s;
 constexpr const char* kRecording = "davis346-faery-trimmed/sample.aedat4";
 constexpr const char* kLongRecording = "davis346-faery/davis346.aedat4";  // several seconds
 
-class VectorSource final : public EventSource {
- public:
-  explicit VectorSource(std::vector<EventBatchPtr> batches) : batches_(std::move(batches)) {
-    info_.name = "vector";
-    info_.geometry = kDavis346;
-  }
-  EventBatchPtr next() override {
-    if (i_ >= batches_.size()) return nullptr;
-    stats_.events += batches_[i_]->size();
-    ++stats_.batches;
-    return batches_[i_++];
-  }
-  [[nodiscard]] bool finished() const override { return i_ >= batches_.size(); }
-  [[nodiscard]] const SourceInfo& info() const override { return info_; }
-  [[nodiscard]] const SourceStats& stats() const override { return stats_; }
-
- private:
-  std::vector<EventBatchPtr> batches_;
-  std::size_t i_ = 0;
-  SourceInfo info_;
-  SourceStats stats_;
-};
+using evpipe::testing::VectorSource;
 
 /// Random events, `segments` clock segments (each restarting near t = 0 with a discontinuity flag).
 std::vector<EventBatchPtr> synthetic(std::uint32_t seed, std::size_t batches, std::size_t per_batch, int segments = 1,

@@ -4,28 +4,12 @@
 #include <thread>
 
 #include "evpipe/pipeline/paced_source.hpp"
+#include "vector_source.hpp"
 
 using namespace evpipe;
 
 namespace {
-class VectorSource final : public EventSource {
- public:
-  explicit VectorSource(std::vector<EventBatchPtr> batches) : batches_(std::move(batches)) {}
-  EventBatchPtr next() override {
-    if (i_ >= batches_.size()) return nullptr;
-    stats_.events += batches_[i_]->size();
-    return batches_[i_++];
-  }
-  [[nodiscard]] bool finished() const override { return i_ >= batches_.size(); }
-  [[nodiscard]] const SourceInfo& info() const override { return info_; }
-  [[nodiscard]] const SourceStats& stats() const override { return stats_; }
-
- private:
-  std::vector<EventBatchPtr> batches_;
-  std::size_t i_ = 0;
-  SourceInfo info_;
-  SourceStats stats_;
-};
+using evpipe::testing::VectorSource;
 
 EventBatchPtr batch(std::vector<std::int64_t> ts, bool disc = false, bool labelled = false) {
   auto b = std::make_shared<EventBatch>();

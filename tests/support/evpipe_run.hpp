@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <regex>
 #include <string>
 
 namespace evpipe::testing {
@@ -34,6 +35,16 @@ inline Run run(const std::string& cmd, const std::filesystem::path& dir) {
   r.out = slurp(out);
   r.err = slurp(err);
   return r;
+}
+
+/// A number, bool or string field of a flat one-line JSON object (evpipe --json); "<missing KEY>" if absent.
+inline std::string json_field(const std::string& json, const std::string& key) {
+  const std::regex re("\"" + key + "\":(\"[^\"]*\"|[^,}]*)");
+  std::smatch m;
+  if (!std::regex_search(json, m, re)) return "<missing " + key + ">";
+  std::string v = m[1];
+  if (!v.empty() && v.front() == '"') v = v.substr(1, v.size() - 2);
+  return v;
 }
 
 /// Single-quotes a path for the shell (test paths hold no quotes).
