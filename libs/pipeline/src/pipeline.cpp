@@ -376,6 +376,20 @@ struct Pipeline::Impl {
     done_cv.notify_all();
   }
 
+  /// Waits until `n` threads have ended (bounded: a stage stuck in a step must not hang the shutdown).
+  void wait_for_threads(int n, std::chrono::nanoseconds timeout) {
+    std::unique_lock lock(done_mu);
+    done_cv.wait_for(lock, timeout, [this, n] { return threads_done >= n; });
+  }
+
+  /// Once the producers have ended: what is still queued (an item pushed after its consumer abandoned the queue)
+  /// is discarded and counted as dropped, so that pushed == popped + dropped holds at the end.
+  void discard_leftovers() {
+    batches.discard_queued();
+    windows_q.discard_queued();
+    poses.discard_queued();
+  }
+
   PipelineStats stats() const {
     PipelineStats s;
     const auto t0 = t_start_ns.load(std::memory_order_acquire);
@@ -480,7 +494,11 @@ void Pipeline::start() {
   s.publish_runner = std::make_unique<StageRunner<PoseSample>>(
       s.m_publish, s.poses, s.publish_stage, s.cancel,
       StageRunner<PoseSample>::Hooks{[&s] {
-                                       // Final statistics: every stage has ended by now.
+                                       // Final statistics once every other stage has ended (on a cancel the
+                                       // pose thread may still finish its step and push after this thread
+                                       // abandoned its input): then nothing moves and the counts are exact.
+                                       s.wait_for_threads(3, s.options.drain_timeout + std::chrono::seconds(5));
+                                       s.discard_leftovers();
                                        try {
                                          auto final_stats = s.stats();
                                          final_stats.running = false;  // every other thread has ended
@@ -527,6 +545,7 @@ void Pipeline::join() {
   s.denoise_runner->join();
   s.pose_runner->join();
   s.publish_runner->join();
+  s.discard_leftovers();  // every thread has ended: safe from here
 }
 
 std::optional<std::string> Pipeline::run() {

@@ -205,6 +205,8 @@ class NamedQueue {
 
   /// The consumer is gone (it failed or was cancelled): pushes drop from now on, a waiting producer wakes, and
   /// the items still queued are discarded and counted as dropped. Consumer thread only.
+  /// A push already past its abandoned check may still land one item after this; once the producer has ended,
+  /// discard_queued() (by whoever then owns the queue) accounts for it — the pipeline does so at shutdown.
   void abandon() {
     abandoned_.store(true, std::memory_order_release);
     producer_bell_.ring_always();
