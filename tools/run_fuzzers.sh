@@ -7,6 +7,7 @@
 #   EVPIPE_FUZZ_BUILD_DIR  build directory (default: <repo>/build/fuzz, the "fuzz" CMake preset)
 #   EVPIPE_FUZZERS         subset to run, e.g. "fuzz_text fuzz_aedat2" (default: all four)
 #   EVPIPE_JOBS            parallel build jobs (default 2)
+#   EVPIPE_FUZZ_PARALLEL   fuzzers run at once (default: the number of cores)
 # Reproduce a finding: $BUILD/tests/fuzz/fuzz_<fmt> <artifact file>
 set -euo pipefail
 
@@ -44,22 +45,39 @@ max_len_of() {
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
 
-failed=()
-for f in $fuzzers; do
-  fmt=${f#fuzz_}
-  corpus=$work/corpus/$fmt        # grows across runs (new coverage is kept here)
+# One fuzzer per core at a time (each is single-threaded); results are reported in the listed order.
+parallel=${EVPIPE_FUZZ_PARALLEL:-$(nproc)}
+run_one() {
+  local f=$1 fmt=${1#fuzz_}
+  local corpus=$work/corpus/$fmt        # grows across runs (new coverage is kept here)
   mkdir -p "$corpus"
-  log=$work/$f.log
-  echo "== $f: ${seconds}s, max_len $(max_len_of "$f"), corpus $corpus + seeds $work/seeds/$fmt"
-  set +e
+  local rc=0
   "$build/tests/fuzz/$f" "$corpus" "$work/seeds/$fmt" \
     -max_total_time="$seconds" -max_len="$(max_len_of "$f")" -rss_limit_mb=2048 -timeout=10 \
     -dict="$root/tests/fuzz/$fmt.dict" -artifact_prefix="$work/artifacts/$f-" -print_final_stats=1 \
-    >"$log" 2>&1
-  rc=$?
-  set -e
+    >"$work/$f.log" 2>&1 || rc=$?
+  echo "$rc" >"$work/$f.rc"
+}
+running=0
+for f in $fuzzers; do
+  echo "== $f: ${seconds}s, max_len $(max_len_of "$f"), corpus $work/corpus/${f#fuzz_} + seeds $work/seeds/${f#fuzz_}"
+  rm -f "$work/$f.rc"
+  run_one "$f" &
+  running=$((running + 1))
+  if [ "$running" -ge "$parallel" ]; then
+    wait -n || true
+    running=$((running - 1))
+  fi
+done
+wait || true
+
+failed=()
+for f in $fuzzers; do
+  log=$work/$f.log
+  rc=$(cat "$work/$f.rc" 2>/dev/null || echo 99)
+  echo "== $f: exit $rc"
   grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb|#[0-9]+ +DONE)" "$log" | sed 's/^/   /' || true
-  if [ $rc -ne 0 ]; then
+  if [ "$rc" -ne 0 ]; then
     echo "!! $f: finding (exit $rc): see $log" >&2
     grep -E "ERROR|SUMMARY|runtime error|Test unit written" "$log" | head -20 >&2 || true
     failed+=("$f")

@@ -32,10 +32,15 @@ class UndistortMap {
     return table_[static_cast<std::size_t>(y) * static_cast<std::size_t>(camera_.width) + static_cast<std::size_t>(x)];
   }
   [[nodiscard]] bool empty() const noexcept { return table_.empty(); }
+  /// Bounding box of the table's normalised coordinates (the association grid covers it).
+  [[nodiscard]] const Eigen::Vector2d& min_n() const noexcept { return min_n_; }
+  [[nodiscard]] const Eigen::Vector2d& max_n() const noexcept { return max_n_; }
 
  private:
   camera::CameraModel camera_;
   std::vector<Eigen::Vector2d> table_;
+  Eigen::Vector2d min_n_{Eigen::Vector2d::Zero()};
+  Eigen::Vector2d max_n_{Eigen::Vector2d::Zero()};
 };
 
 /// f used to convert normalised distances to pixels (and back): the mean of fx and fy.
@@ -89,9 +94,16 @@ struct Association {
 
 /// Associates each event of the window with its nearest projected segment (point-to-segment distance) when it
 /// passes the distance and ambiguity gates. Events outside the map's sensor are ignored. `out` is cleared.
+/// Segments further than the largest gate from an event cannot change its decision, so each event is compared
+/// only with the segments listed in its cell of a coarse grid (8 px cells); the result equals comparing it with
+/// every segment (tests/pose/test_tracker.cpp checks this against the exhaustive loop).
 void associate_events(EventSpan events, const UndistortMap& map, const std::vector<ProjectedSegment>& segments,
                       const AssociationOptions& options, std::vector<Association>& out);
 
+/// The same decisions by comparing every event with every segment: the reference for tests and benchmarks.
+void associate_events_exhaustive(EventSpan events, const UndistortMap& map,
+                                 const std::vector<ProjectedSegment>& segments, const AssociationOptions& options,
+                                 std::vector<Association>& out);
 /// Point-to-segment distance (same units as the inputs).
 [[nodiscard]] double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
                                             const Eigen::Vector2d& b) noexcept;
