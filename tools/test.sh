@@ -16,7 +16,7 @@ bash tools/setup.sh
 stamp "format check (.clang-format)"
 bash tools/check_format.sh
 
-stamp "build (ci preset: Release as shipped, -Werror)"
+stamp "build (ci preset: -O2 without debug info, -Werror)"
 cmake --preset ci >/dev/null
 cmake --build --preset ci -j"$jobs"
 stamp "tests (ci preset)"

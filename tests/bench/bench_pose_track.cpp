@@ -11,6 +11,7 @@
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
+#include "evpipe/pose/projection.hpp"
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/sim/noise.hpp"
 #include "evpipe/sim/target3d.hpp"
@@ -68,6 +69,26 @@ void BM_TrackWindow(benchmark::State& state, const std::string& model_name, std:
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(s.events.size()));
 }
 
+// One association (the first round's default gate) of the roadheader's 30 ms window: the grid lookup against the
+// exhaustive loop over every segment (identical results; tests/pose/test_tracker.cpp). Compare the two in one run.
+void BM_Associate(benchmark::State& state, bool grid) {
+  const Setup s = make("roadheader-wireframe.yaml", 30'000, 1.0);
+  const pose::UndistortMap map(s.cam);
+  const auto segs = pose::project_model(s.cam, s.model, s.start);
+  std::vector<pose::Association> out;
+  for (auto _ : state) {
+    if (grid) {
+      pose::associate_events(s.events, map, segs, {}, out);
+    } else {
+      pose::associate_events_exhaustive(s.events, map, segs, {}, out);
+    }
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["segments"] = static_cast<double>(segs.size());
+  state.counters["associated"] = static_cast<double>(out.size());
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(s.events.size()));
+}
+
 void BM_UndistortMapBuild(benchmark::State& state) {
   const auto cam = camera::load_camera(std::string(EVPIPE_SOURCE_DIR) + "/config/davis346.yaml");
   for (auto _ : state) {
@@ -86,4 +107,6 @@ BENCHMARK_CAPTURE(BM_TrackWindow, planar_30ms, std::string("target-planar.yaml")
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_TrackWindow, roadheader_30ms_lopet, std::string("roadheader-wireframe.yaml"), 30'000, true)
     ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_Associate, grid, true)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_Associate, exhaustive, false)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_UndistortMapBuild)->Unit(benchmark::kMillisecond);

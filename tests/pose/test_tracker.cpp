@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "evpipe/camera/line_model.hpp"
+#include "evpipe/denoise/registry.hpp"
 #include "evpipe/pose/projection.hpp"
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/sim/noise.hpp"
@@ -199,14 +200,30 @@ TEST(Association, GridEqualsTheExhaustiveLoop) {
 
 namespace {
 
-// Runs the tracker on every scene (2 targets x 0.6/0.8/1.0 m x 0/5 Hz/px BA noise x 3 seeds) from the truth
-// perturbed by offset_m / offset_deg; prints every result and returns the number converged per noise level
-// (rotation < 1 deg and translation < 10 mm from the mid-window truth, healthy, covariance positive definite).
+// Runs the tracker on every scene (2 targets x 0.6/0.8/1.0 m x 3 seeds x {no noise, 5 Hz/px BA noise raw, the
+// same noisy window through evpipe's curvature filter}) from the truth perturbed by offset_m / offset_deg; prints
+// every result and returns the number converged per input (rotation < 1 deg and translation < 10 mm from the
+// mid-window truth, healthy, covariance positive definite).
 struct Tally {
-  int converged[2]{0, 0};
-  int runs[2]{0, 0};
+  int converged[3]{0, 0, 0};
+  int runs[3]{0, 0, 0};
   int planar_noise_free{0};
 };
+
+// The window through the paper's filter as evpipe runs it (paper parameters, singular fits kept).
+std::vector<Event> curvature_denoised(const std::vector<Event>& events, const camera::CameraModel& cam) {
+  auto filter = denoise::make_filter_chain("curvature", {{"singular", "keep"}}, SensorGeometry{cam.width, cam.height});
+  denoise::Decisions d, rest;
+  filter->push(events, d);
+  filter->finish(rest);
+  d.keep.insert(d.keep.end(), rest.keep.begin(), rest.keep.end());
+  EXPECT_EQ(d.keep.size(), events.size());
+  std::vector<Event> kept;
+  for (std::size_t i = 0; i < events.size() && i < d.keep.size(); ++i) {
+    if (d.keep[i]) kept.push_back(events[i]);
+  }
+  return kept;
+}
 Tally run_scenes(double offset_m, double offset_deg, const pose::TrackerOptions& o, const char* tag) {
   const auto cam = davis();
   const pose::UndistortMap map(cam);
@@ -214,10 +231,12 @@ Tally run_scenes(double offset_m, double offset_deg, const pose::TrackerOptions&
   for (const std::string file : {"target-planar.yaml", "roadheader-wireframe.yaml"}) {
     const auto model = model_file(file);
     for (const double distance : {0.6, 0.8, 1.0}) {
-      for (const int noisy : {0, 1}) {
+      for (const int input : {0, 1, 2}) {
+        const int noisy = input > 0 ? 1 : 0;
         for (std::uint64_t k = 0; k < 3; ++k) {
           const std::uint64_t seed = 1000 + 97 * k + static_cast<std::uint64_t>(distance * 10) + 5 * noisy;
-          const Window w = make_window(cam, model, distance, noisy ? 5.0 : 0.0, seed);
+          Window w = make_window(cam, model, distance, noisy ? 5.0 : 0.0, seed);
+          if (input == 2) w.events = curvature_denoised(w.events, cam);
           std::mt19937_64 rng(seed + 1);
           const camera::Pose start = sim::perturb_pose(w.truth, offset_m, offset_deg, rng);
           const auto up = pose::track_window(w.events, map, model, start, o);
@@ -228,41 +247,51 @@ Tally run_scenes(double offset_m, double offset_deg, const pose::TrackerOptions&
             pd = Eigen::SelfAdjointEigenSolver<pose::Covariance6>(up.covariance).eigenvalues()(0) > 0.0;
           }
           const bool ok = rot < 1.0 && mm < 10.0 && up.healthy && pd;
-          std::cout << tag << " " << file << " d=" << distance << " noise=" << (noisy ? 5 : 0) << " seed=" << seed
-                    << ": " << w.events.size() << " ev (" << w.signal << " signal), rot " << rot << " deg, trans " << mm
-                    << " mm, sigma " << up.sigma_px << " px, inliers " << up.inliers << " (" << up.inlier_share
-                    << "), it " << up.iterations << ", rounds " << up.rounds << ", cond " << up.condition
+          std::cout << tag << " " << file << " d=" << distance << " noise=" << (noisy ? 5 : 0)
+                    << (input == 2 ? " curvature" : "") << " seed=" << seed << ": " << w.events.size() << " ev ("
+                    << w.signal << " signal), rot " << rot << " deg, trans " << mm << " mm, sigma " << up.sigma_px
+                    << " px, inliers " << up.inliers << " (" << up.inlier_share << "), it " << up.iterations
+                    << ", rounds " << up.rounds << ", cond " << up.condition
                     << (up.healthy ? " healthy" : " UNHEALTHY: " + up.reason) << (ok ? "" : "  <- not converged")
                     << "\n";
           EXPECT_TRUE(up.T_cam_model.t_cam_model_m.allFinite());
-          ++tally.runs[noisy];
-          if (ok) ++tally.converged[noisy];
+          ++tally.runs[input];
+          if (ok) ++tally.converged[input];
           if (ok && !noisy && file == "target-planar.yaml") ++tally.planar_noise_free;
         }
       }
     }
   }
   std::cout << tag << ": converged " << tally.converged[0] << "/" << tally.runs[0] << " without noise, "
-            << tally.converged[1] << "/" << tally.runs[1] << " with 5 Hz/px BA noise\n";
+            << tally.converged[1] << "/" << tally.runs[1] << " with 5 Hz/px BA noise, " << tally.converged[2] << "/"
+            << tally.runs[2] << " with that noise through the curvature filter\n";
   return tally;
 }
 
 }  // namespace
 
 TEST(Tracker, ConvergesFromFiveCmTenDegrees) {
-  // Recovery settings (see TrackerOptions): coarse shift search, wide first gate, many short rounds.
+  // Recovery settings (see TrackerOptions): coarse shift search, wide first gate, many short rounds, and starts
+  // turned about the line of sight and tilted out of plane (the best result kept).
   pose::TrackerOptions o;
   o.coarse_search_px = 48;
   o.association.gate_px = 20;
   o.association_rounds = 20;
   o.max_iterations = 2;
   o.gate_shrink = 0.85;
+  o.recovery_roll_deg = 4.0;
+  o.recovery_roll_steps = 2;
+  o.recovery_tilt_deg = 7.0;
   const Tally t = run_scenes(0.05, 10.0, o, "5cm/10deg");
-  // Measured with these seeds: every noise-free planar scene converges, 14/18 noise-free in all (the
-  // roadheader's dense wireframe traps the nearest-segment association in 4), 4/18 at 5 Hz/px raw noise.
+  // Measured with these seeds: every noise-free scene converges (without the extra starts: 14/18, the
+  // roadheader's dense wireframe trapped the nearest-segment association in 4); 6/18 on raw 5 Hz/px windows; 13/18
+  // on the same windows through the curvature filter — the 5 misses are sparse planar windows (< 550 events,
+  // rotation 1.0-2.1 deg off with the translation within 8 mm: the tilt is weakly observable) that miss from
+  // 1 cm / 2 deg as well, and one roadheader window.
   EXPECT_EQ(t.planar_noise_free, 9);
-  EXPECT_GE(t.converged[0], 14);
-  EXPECT_GE(t.converged[1], 4);
+  EXPECT_EQ(t.converged[0], 18);
+  EXPECT_GE(t.converged[1], 6);
+  EXPECT_GE(t.converged[2], 13);
 }
 
 TEST(Tracker, TracksFromOneCmTwoDegrees) {
@@ -270,6 +299,7 @@ TEST(Tracker, TracksFromOneCmTwoDegrees) {
   const Tally t = run_scenes(0.01, 2.0, {}, "1cm/2deg");
   EXPECT_GE(t.converged[0], 17);
   EXPECT_GE(t.converged[1], 9);
+  EXPECT_GE(t.converged[2], 13);
 }
 
 TEST(Tracker, LopetCompatibleSwitchGivesAResult) {

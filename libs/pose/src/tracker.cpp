@@ -296,41 +296,15 @@ const UndistortMap& cached_map(const camera::CameraModel& camera) {
   return *map;
 }
 
-}  // namespace
-
-TrackUpdate track_window(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
-                         const camera::Pose& T_predicted, const TrackerOptions& options) {
-  return track_window(events, cached_map(camera), model, T_predicted, options);
-}
-
-TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera::LineModel& model,
-                         const camera::Pose& T_predicted, const TrackerOptions& options) {
-  const TrackerOptions& o = options;
+// One tracking run from T_start (the failures report T_predicted, as track_window promises).
+TrackUpdate track_from(EventSpan events, const UndistortMap& map, const camera::LineModel& model,
+                       const camera::Pose& T_predicted, const camera::Pose& T_start, const TrackerOptions& o) {
   const camera::CameraModel& camera = map.camera();
   TrackUpdate up;
   up.T_cam_model = T_predicted;
-  if (!T_predicted.t_cam_model_m.allFinite() || !T_predicted.q_cam_model.coeffs().allFinite()) {
-    up.reason = "predicted pose is not finite";
-    return up;
-  }
-  if (events.empty()) {
-    up.reason = "empty window";
-    return up;
-  }
   const double f = focal_px(camera);
   const double near_m = std::max(o.projection.near_m, 1e-6);
-  // Speed cap: a uniform stride keeps the window's spatial and temporal spread.
-  std::vector<Event> thinned;
-  if (o.max_events > 0 && events.size() > o.max_events) {
-    const double stride = static_cast<double>(events.size()) / static_cast<double>(o.max_events);
-    thinned.reserve(o.max_events);
-    for (std::size_t i = 0; i < o.max_events; ++i) {
-      thinned.push_back(events[static_cast<std::size_t>(static_cast<double>(i) * stride)]);
-    }
-    events = thinned;
-  }
-
-  camera::Pose T = T_predicted;
+  camera::Pose T = T_start;
   if (o.coarse_search_px > 0.0) {
     const auto segs0 = project_model(camera, model, T, o.projection);
     if (!segs0.empty()) {
@@ -434,7 +408,7 @@ TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera
     if (!up.covariance_known) up.covariance.setZero();
   }
 
-  std::vector<std::string> why;
+  std::vector<std::string> why;  // health
   if (up.inliers < o.min_inliers) why.push_back(fmt::format("{} inliers < {}", up.inliers, o.min_inliers));
   if (up.inlier_share < o.min_inlier_share) {
     why.push_back(fmt::format("inlier share {:.3f} < {:.3f}", up.inlier_share, o.min_inlier_share));
@@ -453,6 +427,89 @@ TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera
   up.healthy = why.empty();
   for (std::size_t i = 0; i < why.size(); ++i) up.reason += (i ? "; " : "") + why[i];
   return up;
+}
+
+// The prediction turned by angle_deg about the line of sight to the model's centre (the model keeps its place
+// in the image and turns there).
+Eigen::Vector3d segment_centre(const camera::LineModel& model) {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const auto& s : model.segments_m) centre += 0.5 * (s.a_m + s.b_m);
+  return centre / static_cast<double>(std::max<std::size_t>(model.segments_m.size(), 1));
+}
+
+camera::Pose rolled(const camera::Pose& T, const camera::LineModel& model, double angle_deg) {
+  const Eigen::Vector3d axis = T.apply(segment_centre(model));
+  if (!(axis.norm() > 0.0)) return T;
+  const Eigen::Quaterniond R(Eigen::AngleAxisd(angle_deg * std::numbers::pi / 180.0, axis.normalized()));
+  camera::Pose out;
+  out.q_cam_model = (R * T.q_cam_model).normalized();
+  out.t_cam_model_m = R * T.t_cam_model_m;
+  return out;
+}
+
+// The prediction tilted by angle_deg about the camera's x or y axis through the model's centre (an out-of-plane
+// turn: the model's appearance changes, its place in the image does not).
+camera::Pose tilted(const camera::Pose& T, const camera::LineModel& model, double angle_deg, int axis) {
+  const Eigen::Vector3d c = T.apply(segment_centre(model));
+  const Eigen::Quaterniond R(Eigen::AngleAxisd(angle_deg * std::numbers::pi / 180.0,
+                                               axis == 0 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()));
+  camera::Pose out;
+  out.q_cam_model = (R * T.q_cam_model).normalized();
+  out.t_cam_model_m = R * (T.t_cam_model_m - c) + c;
+  return out;
+}
+
+// Is a better than b? Healthy first, then more inliers, then the smaller scale.
+bool better(const TrackUpdate& a, const TrackUpdate& b) {
+  if (a.healthy != b.healthy) return a.healthy;
+  if (a.inliers != b.inliers) return a.inliers > b.inliers;
+  return a.sigma_px < b.sigma_px;
+}
+
+}  // namespace
+
+TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera::LineModel& model,
+                         const camera::Pose& T_predicted, const TrackerOptions& options) {
+  const TrackerOptions& o = options;
+  TrackUpdate up;
+  up.T_cam_model = T_predicted;
+  if (!T_predicted.t_cam_model_m.allFinite() || !T_predicted.q_cam_model.coeffs().allFinite()) {
+    up.reason = "predicted pose is not finite";
+    return up;
+  }
+  if (events.empty()) {
+    up.reason = "empty window";
+    return up;
+  }
+  // Speed cap: a uniform stride keeps the window's spatial and temporal spread.
+  std::vector<Event> thinned;
+  if (o.max_events > 0 && events.size() > o.max_events) {
+    const double stride = static_cast<double>(events.size()) / static_cast<double>(o.max_events);
+    thinned.reserve(o.max_events);
+    for (std::size_t i = 0; i < o.max_events; ++i) {
+      thinned.push_back(events[static_cast<std::size_t>(static_cast<double>(i) * stride)]);
+    }
+    events = thinned;
+  }
+  up = track_from(events, map, model, T_predicted, T_predicted, o);
+  const auto try_start = [&](const camera::Pose& start) {
+    TrackUpdate alt = track_from(events, map, model, T_predicted, start, o);
+    if (better(alt, up)) up = std::move(alt);
+  };
+  for (int k = 1; o.recovery_roll_deg > 0.0 && k <= o.recovery_roll_steps; ++k) {
+    for (const double sign : {1.0, -1.0}) try_start(rolled(T_predicted, model, sign * k * o.recovery_roll_deg));
+  }
+  if (o.recovery_tilt_deg > 0.0) {
+    for (int axis = 0; axis < 2; ++axis) {
+      for (const double sign : {1.0, -1.0}) try_start(tilted(T_predicted, model, sign * o.recovery_tilt_deg, axis));
+    }
+  }
+  return up;
+}
+
+TrackUpdate track_window(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                         const camera::Pose& T_predicted, const TrackerOptions& options) {
+  return track_window(events, cached_map(camera), model, T_predicted, options);
 }
 
 }  // namespace evpipe::pose

@@ -38,6 +38,14 @@ struct TrackerOptions {
   /// when tracking from the previous window.
   double coarse_search_px = 0.0;
   double coarse_search_step_px = 2.0;
+  /// Recovery from a poor prior: also start from the prediction turned by ±k × recovery_roll_deg
+  /// (k = 1..recovery_roll_steps) about the line of sight to the model (an image rotation, which the shift
+  /// search cannot absorb) and tilted by ±recovery_tilt_deg about the camera's x and y axes through the model
+  /// (out-of-plane turns change a 3D wireframe's appearance; the nearest-segment association then locks onto
+  /// neighbouring edges), and keep the best result (healthy first, then the most inliers). 0 = off (tracking).
+  double recovery_roll_deg = 0.0;
+  int recovery_roll_steps = 0;
+  double recovery_tilt_deg = 0.0;
   double gate_shrink = 0.5;
   double gate_sigma_factor = 4.0;
   double gate_min_px = 2.5;
