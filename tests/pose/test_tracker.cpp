@@ -177,7 +177,7 @@ TEST(Association, GridEqualsTheExhaustiveLoop) {
         for (const double gate : {40.0, 20.0, 10.0, 5.0, 2.5}) {
           pose::AssociationOptions o;
           o.gate_px = gate;
-          o.ambiguity_ratio = std::uniform_real_distribution<double>(1.0, 2.5)(rng);
+          o.ambiguity_ratio = std::uniform_real_distribution<double>(0.5, 2.5)(rng);
           o.junction_px = std::uniform_real_distribution<double>(0.0, 6.0)(rng);
           std::vector<pose::Association> fast, reference;
           pose::associate_events(every_pixel, map, segs, o, fast);

@@ -13,19 +13,31 @@ UndistortMap::UndistortMap(const camera::CameraModel& camera) : camera_(camera) 
   if (camera.width <= 0 || camera.height <= 0) return;
   table_.resize(static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height));
   std::size_t i = 0;
-  min_n_ = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
-  max_n_ = -min_n_;
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector2d hi = -lo;
   for (int y = 0; y < camera.height; ++y) {
     for (int x = 0; x < camera.width; ++x) {
       const Eigen::Vector2d p = camera.pixel_to_normalised(Eigen::Vector2d(x, y));
       table_[i++] = p;
       if (p.allFinite()) {
-        min_n_ = min_n_.cwiseMin(p);
-        max_n_ = max_n_.cwiseMax(p);
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
       }
     }
   }
-  if (!(min_n_.x() <= max_n_.x())) min_n_ = max_n_ = Eigen::Vector2d::Zero();
+  if (!(lo.x() <= hi.x())) lo = hi = Eigen::Vector2d::Zero();
+  grid_.origin = lo;
+  grid_.cell = kGridCellPx / focal_px(camera);
+  grid_.nx = static_cast<int>(std::floor((hi.x() - lo.x()) / grid_.cell)) + 1;
+  grid_.ny = static_cast<int>(std::floor((hi.y() - lo.y()) / grid_.cell)) + 1;
+  cells_.resize(table_.size());
+  for (std::size_t j = 0; j < table_.size(); ++j) {
+    const Eigen::Vector2d& p = table_[j];
+    if (!p.allFinite()) continue;  // never looked up: associate_events skips such pixels
+    const int cx = std::clamp(static_cast<int>(std::floor((p.x() - lo.x()) / grid_.cell)), 0, grid_.nx - 1);
+    const int cy = std::clamp(static_cast<int>(std::floor((p.y() - lo.y()) / grid_.cell)), 0, grid_.ny - 1);
+    cells_[j] = static_cast<std::uint32_t>(cy * grid_.nx + cx);
+  }
 }
 
 double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) noexcept {
@@ -172,19 +184,29 @@ inline double distance2(const SegGeom& s, const Eigen::Vector2d& p) noexcept {
   return (ap - u * s.d).squaredNorm();
 }
 
-// Nearest and second-nearest of the candidate segments (ascending indices: ties keep the lower index), then the
-// gates; appends the association when the event passes them.
-template <class Candidates>
-void decide(std::uint32_t i, const Eigen::Vector2d& p, const std::vector<SegGeom>& segs, const Candidates& candidates,
-            const Gates& g, std::vector<Association>& out) {
+// A grid cell's candidate segment with a lower bound of its squared distance to any point of the cell.
+struct Candidate {
+  std::uint32_t k;
+  double lower2;
+};
+
+// Nearest and second-nearest of the candidates, then the gates; appends the association when the event passes
+// them. Candidates come sorted by their bound, and the loop stops as soon as no remaining one can change the
+// outcome: all remaining are further than the second-nearest so far, or further than the nearest and than both
+// ambiguity thresholds (the nearest, its distance and both ambiguity tests then stay as they are). Equal nearest
+// distances resolve to the lower segment index, so the result equals the loop over every segment in index order.
+void decide_sorted(std::uint32_t i, const Eigen::Vector2d& p, const std::vector<SegGeom>& segs, const Candidate* begin,
+                   const Candidate* end, const Gates& g, std::vector<Association>& out) {
   double best = std::numeric_limits<double>::infinity(), second = best;
   std::uint32_t best_k = 0;
-  for (const std::uint32_t k : candidates) {
-    const double d2 = distance2(segs[k], p);
-    if (d2 < best) {
+  for (const Candidate* c = begin; c != end; ++c) {
+    if (c->lower2 > second) break;
+    if (c->lower2 > best && c->lower2 > std::max(g.ratio2 * best, g.junction2)) break;
+    const double d2 = distance2(segs[c->k], p);
+    if (d2 < best || (d2 == best && c->k < best_k)) {
       second = best;
       best = d2;
-      best_k = k;
+      best_k = c->k;
     } else if (d2 < second) {
       second = d2;
     }
@@ -193,31 +215,6 @@ void decide(std::uint32_t i, const Eigen::Vector2d& p, const std::vector<SegGeom
   if (!(second > g.ratio2 * best) || !(second > g.junction2)) return;
   out.push_back({i, best_k, p, std::sqrt(best) * g.f});
 }
-
-// The integers [0, n) as a range (the exhaustive loop's candidates).
-struct Iota {
-  std::uint32_t n;
-  struct It {
-    std::uint32_t k;
-    std::uint32_t operator*() const noexcept { return k; }
-    It& operator++() noexcept {
-      ++k;
-      return *this;
-    }
-    bool operator!=(const It& o) const noexcept { return k != o.k; }
-  };
-  [[nodiscard]] It begin() const noexcept { return {0}; }
-  [[nodiscard]] It end() const noexcept { return {n}; }
-};
-
-struct Span32 {
-  const std::uint32_t* b;
-  const std::uint32_t* e;
-  [[nodiscard]] const std::uint32_t* begin() const noexcept { return b; }
-  [[nodiscard]] const std::uint32_t* end() const noexcept { return e; }
-};
-
-constexpr double kCellPx = 8.0;
 
 }  // namespace
 
@@ -228,30 +225,61 @@ void associate_events_exhaustive(EventSpan events, const UndistortMap& map,
   if (segments.empty() || map.empty()) return;
   const Gates g(map, options);
   const auto segs = segment_geometry(segments);
-  const Iota all{static_cast<std::uint32_t>(segs.size())};
+  // Every segment in index order with a zero bound: decide_sorted() then never stops early.
+  std::vector<Candidate> all(segs.size());
+  for (std::uint32_t k = 0; k < segs.size(); ++k) all[k] = {k, 0.0};
   for (std::size_t i = 0; i < events.size(); ++i) {
     const Event& e = events[i];
     if (!map.contains(e.x, e.y)) continue;
-    decide(static_cast<std::uint32_t>(i), map.at(e.x, e.y), segs, all, g, out);
+    decide_sorted(static_cast<std::uint32_t>(i), map.at(e.x, e.y), segs, all.data(), all.data() + all.size(), g, out);
+  }
+}
+
+void gather_events(EventSpan events, const UndistortMap& map, GatheredEvents& out) {
+  out.index.clear();
+  out.p_n.clear();
+  out.cell.clear();
+  if (map.empty()) return;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const Event& e = events[i];
+    if (!map.contains(e.x, e.y)) continue;
+    const Eigen::Vector2d& p = map.at(e.x, e.y);
+    if (!p.allFinite()) continue;  // no finite distance to anything: never associated
+    out.index.push_back(static_cast<std::uint32_t>(i));
+    out.p_n.push_back(p);
+    out.cell.push_back(map.cell_of(e.x, e.y));
   }
 }
 
 void associate_events(EventSpan events, const UndistortMap& map, const std::vector<ProjectedSegment>& segments,
                       const AssociationOptions& options, std::vector<Association>& out) {
+  GatheredEvents gathered;
+  gather_events(events, map, gathered);
+  associate_events(gathered, map, segments, options, out);
+}
+
+void associate_events(const GatheredEvents& events, const UndistortMap& map,
+                      const std::vector<ProjectedSegment>& segments, const AssociationOptions& options,
+                      std::vector<Association>& out) {
   out.clear();
   if (segments.empty() || map.empty()) return;
   const Gates g(map, options);
   const auto segs = segment_geometry(segments);
   // Grid over the table's normalised extent. A cell lists every segment within margin + half its diagonal of
-  // its centre: a superset of the segments within `margin` of any point in the cell (inflated slightly against
-  // rounding), in ascending order.
-  const double cell = kCellPx / g.f;
-  const Eigen::Vector2d origin = map.min_n();
-  const int nx = static_cast<int>(std::floor((map.max_n().x() - origin.x()) / cell)) + 1;
-  const int ny = static_cast<int>(std::floor((map.max_n().y() - origin.y()) / cell)) + 1;
-  const double reach = (g.margin + cell * std::numbers::sqrt2 / 2.0) * (1.0 + 1e-9) + 1e-12;
+  // its centre — a superset of the segments within `margin` of any point in the cell (inflated slightly against
+  // rounding) — with a lower bound of its distance to any point of the cell, sorted by that bound.
+  const UndistortMap::Grid& grid = map.grid();
+  const double cell = grid.cell;
+  const double half_diagonal = cell * std::numbers::sqrt2 / 2.0;
+  const Eigen::Vector2d origin = grid.origin;
+  const int nx = grid.nx, ny = grid.ny;
+  const double reach = (g.margin + half_diagonal) * (1.0 + 1e-9) + 1e-12;
   const double reach2 = reach * reach;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> cell_seg;  // (cell, segment)
+  struct Entry {
+    std::uint32_t cell;
+    Candidate candidate;
+  };
+  std::vector<Entry> entries;
   for (std::uint32_t k = 0; k < segs.size(); ++k) {
     const SegGeom& s = segs[k];
     const Eigen::Vector2d b = s.a + s.d;
@@ -267,30 +295,34 @@ void associate_events(EventSpan events, const UndistortMap& map, const std::vect
     for (int cy = y0; cy <= y1; ++cy) {
       for (int cx = x0; cx <= x1; ++cx) {
         const Eigen::Vector2d centre = origin + cell * Eigen::Vector2d(cx + 0.5, cy + 0.5);
-        if (distance2(s, centre) <= reach2) {
-          cell_seg.emplace_back(static_cast<std::uint32_t>(cy * nx + cx), k);
+        const double d2 = distance2(s, centre);
+        if (d2 <= reach2) {
+          // |p - centre| <= half_diagonal for p in the cell, so distance(p) >= distance(centre) - half_diagonal
+          // (shrunk a little against rounding).
+          const double lower = (std::sqrt(d2) - half_diagonal) * (1.0 - 1e-9) - 1e-12;
+          entries.push_back({static_cast<std::uint32_t>(cy * nx + cx), {k, lower > 0.0 ? lower * lower : 0.0}});
         }
       }
     }
   }
-  // Counting sort by cell (stable: segment order kept).
+  // Counting sort by cell, then each cell's list by its bound.
   std::vector<std::uint32_t> first(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny) + 1, 0);
-  for (const auto& [c, k] : cell_seg) ++first[c + 1];
+  for (const Entry& e : entries) ++first[e.cell + 1];
   for (std::size_t c = 1; c < first.size(); ++c) first[c] += first[c - 1];
-  std::vector<std::uint32_t> list(cell_seg.size());
+  std::vector<Candidate> list(entries.size());
   {
     std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
-    for (const auto& [c, k] : cell_seg) list[fill[c]++] = k;
+    for (const Entry& e : entries) list[fill[e.cell]++] = e.candidate;
   }
-  for (std::size_t i = 0; i < events.size(); ++i) {
-    const Event& e = events[i];
-    if (!map.contains(e.x, e.y)) continue;
-    const Eigen::Vector2d& p = map.at(e.x, e.y);
-    if (!p.allFinite()) continue;  // no finite distance to anything: rejected by the exhaustive loop too
-    const int cx = std::clamp(static_cast<int>(std::floor((p.x() - origin.x()) / cell)), 0, nx - 1);
-    const int cy = std::clamp(static_cast<int>(std::floor((p.y() - origin.y()) / cell)), 0, ny - 1);
-    const std::size_t c = static_cast<std::size_t>(cy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(cx);
-    decide(static_cast<std::uint32_t>(i), p, segs, Span32{list.data() + first[c], list.data() + first[c + 1]}, g, out);
+  for (std::size_t c = 0; c + 1 < first.size(); ++c) {
+    if (first[c + 1] - first[c] > 1) {
+      std::sort(list.begin() + first[c], list.begin() + first[c + 1],
+                [](const Candidate& l, const Candidate& r) { return l.lower2 < r.lower2; });
+    }
+  }
+  for (std::size_t j = 0; j < events.index.size(); ++j) {
+    const std::uint32_t c = events.cell[j];
+    decide_sorted(events.index[j], events.p_n[j], segs, list.data() + first[c], list.data() + first[c + 1], g, out);
   }
 }
 

@@ -317,6 +317,8 @@ TrackUpdate track_from(EventSpan events, const UndistortMap& map, const camera::
   std::vector<Association> assoc;
   double sigma_n = 0.0;
   const int rounds = std::max(o.association_rounds, 1);
+  GatheredEvents gathered;
+  gather_events(events, map, gathered);
   for (int round = 0; round < rounds; ++round) {
     segs = project_model(camera, model, T, o.projection);
     if (segs.empty()) {
@@ -327,7 +329,7 @@ TrackUpdate track_from(EventSpan events, const UndistortMap& map, const camera::
     }
     AssociationOptions ao = o.association;
     ao.gate_px = gate_px;
-    associate_events(events, map, segs, ao, assoc);
+    associate_events(gathered, map, segs, ao, assoc);
     std::vector<std::size_t> counts(segs.size(), 0);
     for (const auto& a : assoc) ++counts[a.segment];
     if (assoc.size() < 6) {

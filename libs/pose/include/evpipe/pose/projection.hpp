@@ -32,15 +32,25 @@ class UndistortMap {
     return table_[static_cast<std::size_t>(y) * static_cast<std::size_t>(camera_.width) + static_cast<std::size_t>(x)];
   }
   [[nodiscard]] bool empty() const noexcept { return table_.empty(); }
-  /// Bounding box of the table's normalised coordinates (the association grid covers it).
-  [[nodiscard]] const Eigen::Vector2d& min_n() const noexcept { return min_n_; }
-  [[nodiscard]] const Eigen::Vector2d& max_n() const noexcept { return max_n_; }
+  /// The association grid: square cells of kGridCellPx pixels (in normalised units) over the bounding box of the
+  /// table's normalised coordinates, and the cell of every pixel's normalised point.
+  static constexpr double kGridCellPx = 8.0;
+  struct Grid {
+    Eigen::Vector2d origin{Eigen::Vector2d::Zero()};  ///< normalised coordinates of cell (0, 0)'s corner
+    double cell{1.0};                                 ///< cell side, normalised units
+    int nx{1}, ny{1};
+  };
+  [[nodiscard]] const Grid& grid() const noexcept { return grid_; }
+  /// Cell index (cy * nx + cx) of pixel (x, y)'s normalised point; contains(x, y) must hold.
+  [[nodiscard]] std::uint32_t cell_of(int x, int y) const noexcept {
+    return cells_[static_cast<std::size_t>(y) * static_cast<std::size_t>(camera_.width) + static_cast<std::size_t>(x)];
+  }
 
  private:
   camera::CameraModel camera_;
   std::vector<Eigen::Vector2d> table_;
-  Eigen::Vector2d min_n_{Eigen::Vector2d::Zero()};
-  Eigen::Vector2d max_n_{Eigen::Vector2d::Zero()};
+  Grid grid_;
+  std::vector<std::uint32_t> cells_;
 };
 
 /// f used to convert normalised distances to pixels (and back): the mean of fx and fy.
@@ -99,6 +109,20 @@ struct Association {
 /// every segment (tests/pose/test_tracker.cpp checks this against the exhaustive loop).
 void associate_events(EventSpan events, const UndistortMap& map, const std::vector<ProjectedSegment>& segments,
                       const AssociationOptions& options, std::vector<Association>& out);
+
+/// A window's events as the association reads them, gathered once per window (the tracker associates the same
+/// events several times): index into the window, normalised undistorted point, grid cell. Events outside the
+/// sensor or without a finite normalised point are left out (they are never associated).
+struct GatheredEvents {
+  std::vector<std::uint32_t> index;
+  std::vector<Eigen::Vector2d> p_n;
+  std::vector<std::uint32_t> cell;
+};
+void gather_events(EventSpan events, const UndistortMap& map, GatheredEvents& out);
+/// associate_events on gathered events (the same result).
+void associate_events(const GatheredEvents& events, const UndistortMap& map,
+                      const std::vector<ProjectedSegment>& segments, const AssociationOptions& options,
+                      std::vector<Association>& out);
 
 /// The same decisions by comparing every event with every segment: the reference for tests and benchmarks.
 void associate_events_exhaustive(EventSpan events, const UndistortMap& map,
