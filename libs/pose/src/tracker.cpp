@@ -296,9 +296,11 @@ const UndistortMap& cached_map(const camera::CameraModel& camera) {
   return *map;
 }
 
-// One tracking run from T_start (the failures report T_predicted, as track_window promises).
-TrackUpdate track_from(EventSpan events, const UndistortMap& map, const camera::LineModel& model,
-                       const camera::Pose& T_predicted, const camera::Pose& T_start, const TrackerOptions& o) {
+// One tracking run from T_start on the window's events (and the same events gathered for the association); the
+// failures report T_predicted, as track_window promises.
+TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const UndistortMap& map,
+                       const camera::LineModel& model, const camera::Pose& T_predicted, const camera::Pose& T_start,
+                       const TrackerOptions& o) {
   const camera::CameraModel& camera = map.camera();
   TrackUpdate up;
   up.T_cam_model = T_predicted;
@@ -317,8 +319,6 @@ TrackUpdate track_from(EventSpan events, const UndistortMap& map, const camera::
   std::vector<Association> assoc;
   double sigma_n = 0.0;
   const int rounds = std::max(o.association_rounds, 1);
-  GatheredEvents gathered;
-  gather_events(events, map, gathered);
   for (int round = 0; round < rounds; ++round) {
     segs = project_model(camera, model, T, o.projection);
     if (segs.empty()) {
@@ -431,14 +431,15 @@ TrackUpdate track_from(EventSpan events, const UndistortMap& map, const camera::
   return up;
 }
 
-// The prediction turned by angle_deg about the line of sight to the model's centre (the model keeps its place
-// in the image and turns there).
+// Mean of the segments' midpoints (model frame).
 Eigen::Vector3d segment_centre(const camera::LineModel& model) {
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   for (const auto& s : model.segments_m) centre += 0.5 * (s.a_m + s.b_m);
   return centre / static_cast<double>(std::max<std::size_t>(model.segments_m.size(), 1));
 }
 
+// The prediction turned by angle_deg about the line of sight to the model's centre (the model keeps its place
+// in the image and turns there).
 camera::Pose rolled(const camera::Pose& T, const camera::LineModel& model, double angle_deg) {
   const Eigen::Vector3d axis = T.apply(segment_centre(model));
   if (!(axis.norm() > 0.0)) return T;
@@ -493,9 +494,11 @@ TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera
     }
     events = thinned;
   }
-  up = track_from(events, map, model, T_predicted, T_predicted, o);
+  GatheredEvents gathered;
+  gather_events(events, map, gathered);
+  up = track_from(events, gathered, map, model, T_predicted, T_predicted, o);
   const auto try_start = [&](const camera::Pose& start) {
-    TrackUpdate alt = track_from(events, map, model, T_predicted, start, o);
+    TrackUpdate alt = track_from(events, gathered, map, model, T_predicted, start, o);
     if (better(alt, up)) up = std::move(alt);
   };
   for (int k = 1; o.recovery_roll_deg > 0.0 && k <= o.recovery_roll_steps; ++k) {
