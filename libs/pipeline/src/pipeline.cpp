@@ -376,10 +376,11 @@ struct Pipeline::Impl {
     done_cv.notify_all();
   }
 
-  /// Waits until `n` threads have ended (bounded: a stage stuck in a step must not hang the shutdown).
-  void wait_for_threads(int n, std::chrono::nanoseconds timeout) {
+  /// Waits until `n` threads have ended (bounded: a stage stuck in a step must not hang the shutdown); false on
+  /// the timeout.
+  bool wait_for_threads(int n, std::chrono::nanoseconds timeout) {
     std::unique_lock lock(done_mu);
-    done_cv.wait_for(lock, timeout, [this, n] { return threads_done >= n; });
+    return done_cv.wait_for(lock, timeout, [this, n] { return threads_done >= n; });
   }
 
   /// Once the producers have ended: what is still queued (an item pushed after its consumer abandoned the queue)
@@ -497,8 +498,10 @@ void Pipeline::start() {
                                        // Final statistics once every other stage has ended (on a cancel the
                                        // pose thread may still finish its step and push after this thread
                                        // abandoned its input): then nothing moves and the counts are exact.
-                                       s.wait_for_threads(3, s.options.drain_timeout + std::chrono::seconds(5));
-                                       s.discard_leftovers();
+                                       // (Not when a stage is stuck: its queues still have a live side.)
+                                       if (s.wait_for_threads(3, s.options.drain_timeout + std::chrono::seconds(5))) {
+                                         s.discard_leftovers();
+                                       }
                                        try {
                                          auto final_stats = s.stats();
                                          final_stats.running = false;  // every other thread has ended
