@@ -51,8 +51,9 @@ pose::PoseEstimate PoseStage::process(const EventWindow& window) {
     window.for_each([this](const Event& e) { scratch_.push_back(e); });
     events = scratch_;
   }
-  if (window.starts_segment && estimator_.counters().windows > 0)
+  if (window.starts_segment && estimator_.counters().windows > 0) {
     estimator_.reset();  // clock jumped: the track is stale
+  }
   const auto t0 = std::chrono::steady_clock::now();
   // The pose is fitted to all events of the window: it best represents the window's middle, which is the
   // time it is stamped with (a 30 ms window lags its end by 15 ms).

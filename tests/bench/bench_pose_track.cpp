@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "curvature_window.hpp"
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
-#include "evpipe/denoise/registry.hpp"
 #include "evpipe/pose/projection.hpp"
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/sim/noise.hpp"
@@ -49,19 +49,8 @@ Setup make(const std::string& model_name, std::int64_t window_us, double noise_h
   auto noise = sim::background_activity(SensorGeometry{s.cam.width, s.cam.height}, t0, t0 + window_us, no, rng);
   s.events.insert(s.events.end(), noise.begin(), noise.end());
   std::stable_sort(s.events.begin(), s.events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
-  if (denoised) {  // what the pose stage gets in evpipe: the window through the curvature filter (singular: keep)
-    auto filter =
-        denoise::make_filter_chain("curvature", {{"singular", "keep"}}, SensorGeometry{s.cam.width, s.cam.height});
-    denoise::Decisions d, rest;
-    filter->push(s.events, d);
-    filter->finish(rest);
-    d.keep.insert(d.keep.end(), rest.keep.begin(), rest.keep.end());
-    std::vector<Event> kept;
-    for (std::size_t i = 0; i < s.events.size(); ++i) {
-      if (d.keep[i]) kept.push_back(s.events[i]);
-    }
-    s.events = std::move(kept);
-  }
+  // What the pose stage gets in evpipe: the window through the curvature filter.
+  if (denoised) s.events = evpipe::testing::curvature_filtered(s.events, SensorGeometry{s.cam.width, s.cam.height});
   const auto truth = scene.trajectory[static_cast<std::size_t>((t0 + window_us / 2) / 1000)].pose;
   s.start = sim::perturb_pose(truth, 0.01, 2.0, rng);
   return s;

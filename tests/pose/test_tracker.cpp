@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "curvature_window.hpp"
 #include "evpipe/camera/line_model.hpp"
-#include "evpipe/denoise/registry.hpp"
 #include "evpipe/pose/projection.hpp"
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/sim/noise.hpp"
@@ -210,20 +210,6 @@ struct Tally {
   int planar_noise_free{0};
 };
 
-// The window through the paper's filter as evpipe runs it (paper parameters, singular fits kept).
-std::vector<Event> curvature_denoised(const std::vector<Event>& events, const camera::CameraModel& cam) {
-  auto filter = denoise::make_filter_chain("curvature", {{"singular", "keep"}}, SensorGeometry{cam.width, cam.height});
-  denoise::Decisions d, rest;
-  filter->push(events, d);
-  filter->finish(rest);
-  d.keep.insert(d.keep.end(), rest.keep.begin(), rest.keep.end());
-  EXPECT_EQ(d.keep.size(), events.size());
-  std::vector<Event> kept;
-  for (std::size_t i = 0; i < events.size() && i < d.keep.size(); ++i) {
-    if (d.keep[i]) kept.push_back(events[i]);
-  }
-  return kept;
-}
 Tally run_scenes(double offset_m, double offset_deg, const pose::TrackerOptions& o, const char* tag) {
   const auto cam = davis();
   const pose::UndistortMap map(cam);
@@ -236,7 +222,9 @@ Tally run_scenes(double offset_m, double offset_deg, const pose::TrackerOptions&
         for (std::uint64_t k = 0; k < 3; ++k) {
           const std::uint64_t seed = 1000 + 97 * k + static_cast<std::uint64_t>(distance * 10) + 5 * noisy;
           Window w = make_window(cam, model, distance, noisy ? 5.0 : 0.0, seed);
-          if (input == 2) w.events = curvature_denoised(w.events, cam);
+          if (input == 2) {
+            w.events = evpipe::testing::curvature_filtered(w.events, SensorGeometry{cam.width, cam.height});
+          }
           std::mt19937_64 rng(seed + 1);
           const camera::Pose start = sim::perturb_pose(w.truth, offset_m, offset_deg, rng);
           const auto up = pose::track_window(w.events, map, model, start, o);

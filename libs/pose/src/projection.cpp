@@ -228,10 +228,10 @@ void associate_events_exhaustive(EventSpan events, const UndistortMap& map,
   // Every segment in index order with a zero bound: decide_sorted() then never stops early.
   std::vector<Candidate> all(segs.size());
   for (std::uint32_t k = 0; k < segs.size(); ++k) all[k] = {k, 0.0};
-  for (std::size_t i = 0; i < events.size(); ++i) {
-    const Event& e = events[i];
-    if (!map.contains(e.x, e.y)) continue;
-    decide_sorted(static_cast<std::uint32_t>(i), map.at(e.x, e.y), segs, all.data(), all.data() + all.size(), g, out);
+  GatheredEvents gathered;
+  gather_events(events, map, gathered);
+  for (std::size_t j = 0; j < gathered.index.size(); ++j) {
+    decide_sorted(gathered.index[j], gathered.p_n[j], segs, all.data(), all.data() + all.size(), g, out);
   }
 }
 
