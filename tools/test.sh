@@ -42,7 +42,7 @@ if [ "${EVPIPE_SKIP_TSAN:-0}" != 1 ]; then
   cmake --build --preset tsan -j"$jobs" --target test_pipeline
   stamp "tests (tsan preset: pipeline queues, stage loop, graph)"
   TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
-    ctest --preset tsan -j"$jobs" -R '^(PacedSource|SpscRing|NamedQueue|Histogram|StageRunner|PipelineGraph)\.'
+    ctest --preset tsan -j"$jobs" -R '^(PacedSource|SpscRing|NamedQueue|Histogram|StageRunner|PipelineGraph|BackgroundTask)\.'
 fi
 
 if [ "${EVPIPE_SKIP_FUZZ:-0}" != 1 ]; then

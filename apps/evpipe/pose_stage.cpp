@@ -25,7 +25,8 @@ std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg) {
     pose::PoseEstimator estimator(std::move(cam), std::move(model), std::move(prior), options);
     std::optional<camera::TrajectoryCsvWriter> csv;
     if (!p.poses_out.empty()) csv.emplace(p.poses_out, pose_csv_extra_columns());
-    return std::unique_ptr<PoseStage>(new PoseStage(std::move(estimator), std::move(csv), p.poses_out));
+    return std::unique_ptr<PoseStage>(
+        new PoseStage(std::move(estimator), std::move(csv), p.poses_out, init_on_worker(cfg)));
   } catch (const camera::ModelError& e) {
     throw config::ConfigError(e.what());
   } catch (const std::invalid_argument& e) {
@@ -35,11 +36,49 @@ std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg) {
   }
 }
 
+bool init_on_worker(const config::RunConfig& cfg) {
+  const std::string& w = cfg.pose.init_worker;
+  if (w == "on") return true;
+  if (w == "off") return false;
+  return !(!cfg.source.replay.empty() && !cfg.source.speed);  // auto: not for a replay at --speed max
+}
+
 PoseStage::PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv,
-                     std::string csv_path)
+                     std::string csv_path, bool init_worker)
     : estimator_(std::move(estimator)), csv_(std::move(csv)) {
   summary_.enabled = true;
   summary_.poses_out = std::move(csv_path);
+  summary_.init_worker = init_worker;
+  if (init_worker) init_worker_ = std::make_unique<pipeline::BackgroundTask<pose::InitOutcome>>("pose-init");
+}
+
+PoseStage::~PoseStage() = default;
+
+pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, double& compute_ms) {
+  if (!init_worker_) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto e = estimator_.process(events, t_us);
+    compute_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return e;
+  }
+  // An attempt runs on the worker: this window waits for nothing.
+  if (init_worker_->pending()) {
+    std::optional<pose::InitOutcome> outcome = init_worker_->poll();
+    if (!outcome) return estimator_.initialising_window(events, t_us);
+    compute_ms = std::chrono::duration<double, std::milli>(init_worker_->last_duration()).count();
+    return estimator_.complete_initialisation(*outcome, events, t_us);
+  }
+  if (estimator_.needs_initialisation()) {
+    pose::PoseEstimate now;
+    std::optional<pose::InitJob> job = estimator_.prepare_initialisation(events, t_us, now);
+    // The estimator outlives the worker (member order); the job owns its events.
+    if (job) init_worker_->submit([this, j = std::move(*job)] { return estimator_.run_initialisation(j); });
+    return now;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  auto e = estimator_.process(events, t_us);
+  compute_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return e;
 }
 
 pose::PoseEstimate PoseStage::process(const EventWindow& window) {
@@ -54,11 +93,10 @@ pose::PoseEstimate PoseStage::process(const EventWindow& window) {
   if (window.starts_segment && estimator_.counters().windows > 0) {
     estimator_.reset();  // clock jumped: the track is stale
   }
-  const auto t0 = std::chrono::steady_clock::now();
   // The pose is fitted to all events of the window: it best represents the window's middle, which is the
   // time it is stamped with (a 30 ms window lags its end by 15 ms).
-  auto estimate = estimator_.process(events, window.t0_us + (window.t1_us - window.t0_us) / 2);
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  double ms = 0.0;
+  auto estimate = this->estimate(events, window.t0_us + (window.t1_us - window.t0_us) / 2, ms);
   if (estimate.initialised_now && summary_.first_init_ms == 0) summary_.first_init_ms = ms;
   if (estimate.pose_valid) {
     if (!estimate.initialised_now) summary_.update_ms.push_back(ms);

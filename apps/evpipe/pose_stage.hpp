@@ -12,6 +12,7 @@
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/config/run_config.hpp"
 #include "evpipe/core/slicer.hpp"
+#include "evpipe/pipeline/background_task.hpp"
 #include "evpipe/pose/estimator.hpp"
 
 namespace evpipe::app {
@@ -23,7 +24,8 @@ struct PoseSummary {
   std::uint64_t valid_poses = 0;
   std::uint64_t windows_by_status[3] = {0, 0, 0};
   std::uint64_t init_attempts = 0, init_successes = 0, losses = 0;
-  double first_init_ms = 0;       ///< compute time of the window whose initialisation first succeeded
+  double first_init_ms = 0;       ///< compute time of the first successful initialisation attempt
+  bool init_worker = false;       ///< attempts ran on a worker thread
   std::vector<double> update_ms;  ///< compute time per tracked window (for percentiles)
   std::int64_t first_valid_t_us = 0, last_valid_t_us = 0;
   std::string poses_out;
@@ -34,8 +36,13 @@ class PoseStage {
  public:
   /// Loads camera, model and prior named in cfg.pose. Throws config::ConfigError naming the file and field.
   static std::unique_ptr<PoseStage> create(const config::RunConfig& cfg);
+  ~PoseStage();
+  PoseStage(const PoseStage&) = delete;
+  PoseStage& operator=(const PoseStage&) = delete;
 
-  /// Runs the estimator on one window (copied into one contiguous span when it spans batches).
+  /// Runs the estimator on one window (copied into one contiguous span when it spans batches). With the
+  /// initialisation worker an attempt is handed to it and this window and those after it return at once
+  /// (`initialising`) until it is done.
   pose::PoseEstimate process(const EventWindow& window);
   /// Writes a pose row (when --poses-out is set). Only valid poses are published.
   void write(const pose::PoseEstimate& estimate);
@@ -44,13 +51,20 @@ class PoseStage {
   [[nodiscard]] PoseSummary summary() const;
 
  private:
-  PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv, std::string csv_path);
+  PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv, std::string csv_path,
+            bool init_worker);
+  pose::PoseEstimate estimate(EventSpan events, std::int64_t t_us, double& compute_ms);
 
   pose::PoseEstimator estimator_;
+  // Declared after the estimator: destroyed (joined) first, while the estimator its job reads still exists.
+  std::unique_ptr<pipeline::BackgroundTask<pose::InitOutcome>> init_worker_;
   std::optional<camera::TrajectoryCsvWriter> csv_;
   PoseSummary summary_;
   std::vector<Event> scratch_;
 };
+
+/// Does cfg ask for initialisation on a worker thread (pose.init_worker, "auto" resolved)?
+[[nodiscard]] bool init_on_worker(const config::RunConfig& cfg);
 
 /// The published row of an estimate (extra CSV columns after the eight of interfaces.md).
 [[nodiscard]] std::vector<std::string> pose_csv_extra_columns();

@@ -81,8 +81,9 @@ std::string format_text(const RunSummary& s) {
          fmt::format("initialising {:.1f} %, tracking {:.1f} %, lost {:.1f} %",
                      100 * share(p.windows_by_status[0], p.windows), 100 * share(p.windows_by_status[1], p.windows),
                      100 * share(p.windows_by_status[2], p.windows)));
-    line("initialisation", fmt::format("{} of {} attempts succeeded, {} losses; first took {:.1f} ms", p.init_successes,
-                                       p.init_attempts, p.losses, p.first_init_ms));
+    line("initialisation",
+         fmt::format("{} of {} attempts succeeded, {} losses; first took {:.1f} ms ({})", p.init_successes,
+                     p.init_attempts, p.losses, p.first_init_ms, p.init_worker ? "on a worker thread" : "in line"));
     line("pose update", fmt::format("p50 {:.3f} ms, p99 {:.3f} ms compute per window", percentile(p.update_ms, 0.5),
                                     percentile(p.update_ms, 0.99)));
     if (p.valid_poses == 0 && !p.last_note.empty()) line("no pose", p.last_note);
@@ -120,11 +121,12 @@ std::string pose_json(const PoseSummary& p) {
       ",\"pose_enabled\":true,\"pose_windows\":{},\"pose_updates\":{},\"pose_rate_hz\":{:.3f},"
       "\"pose_initialising_share\":{:.6f},\"pose_tracking_share\":{:.6f},\"pose_lost_share\":{:.6f},"
       "\"pose_init_attempts\":{},\"pose_init_successes\":{},\"pose_losses\":{},\"pose_init_ms\":{:.3f},"
+      "\"pose_init_worker\":{},"
       "\"pose_update_ms_p50\":{:.4f},\"pose_update_ms_p99\":{:.4f},\"pose_note\":{}",
       p.windows, p.valid_poses, update_rate_hz(p), share(p.windows_by_status[0], p.windows),
       share(p.windows_by_status[1], p.windows), share(p.windows_by_status[2], p.windows), p.init_attempts,
-      p.init_successes, p.losses, p.first_init_ms, percentile(p.update_ms, 0.5), percentile(p.update_ms, 0.99),
-      json_quote(p.last_note));
+      p.init_successes, p.losses, p.first_init_ms, p.init_worker, percentile(p.update_ms, 0.5),
+      percentile(p.update_ms, 0.99), json_quote(p.last_note));
 }
 }  // namespace
 

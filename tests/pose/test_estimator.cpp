@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <optional>
 #include <random>
 
 #include "evpipe/camera/trajectory.hpp"
@@ -140,3 +141,77 @@ TEST_P(EstimatorScenes, InitialisesTracksLosesAndRecovers) {
 INSTANTIATE_TEST_SUITE_P(Targets, EstimatorScenes, ::testing::Values(0, 1), [](const auto& param_info) {
   return std::string(param_info.param == 0 ? "planar" : "roadheader");
 });
+
+// The split form PoseStage runs with its initialisation worker: the attempt is cut out on one window, later
+// windows pass as "initialising" while it runs, and its outcome starts the track on a later window, which is
+// then tracked from the found pose. Its result equals process() on the same window, and a reset() in between
+// discards it.
+TEST(PoseEstimator, InitialisationElsewhereStartsTheTrackOnALaterWindow) {
+  const std::uint64_t seed = 20261121;
+  SCOPED_TRACE(::testing::Message() << "seed " << seed);
+  const Scene s("roadheader-wireframe.yaml", 1.0, seed, 1'500'000);
+  pose::PoseEstimator inline_est(s.scene.camera, s.scene.model, s.prior);
+  pose::PoseEstimator split(s.scene.camera, s.scene.model, s.prior);
+
+  // The first window on which process() initialises; the split estimator sees the same windows before it.
+  std::int64_t t0 = 0;
+  pose::PoseEstimate inline_out;
+  for (; t0 + kWindow_us <= 600'000; t0 += kWindow_us) {
+    inline_out = inline_est.process(s.window(t0, t0 + kWindow_us), t0 + kWindow_us);
+    if (inline_out.pose_valid) break;
+    split.process(s.window(t0, t0 + kWindow_us), t0 + kWindow_us);
+  }
+  ASSERT_TRUE(inline_out.pose_valid) << "never initialised: " << inline_out.note;
+  EXPECT_TRUE(inline_out.initialised_now);
+  const std::uint64_t windows_before = split.counters().windows;
+  const std::uint64_t attempts_before = split.counters().init_attempts;
+
+  pose::PoseEstimate now;
+  const std::optional<pose::InitJob> job =
+      split.prepare_initialisation(s.window(t0, t0 + kWindow_us), t0 + kWindow_us, now);
+  ASSERT_TRUE(job);
+  EXPECT_FALSE(now.pose_valid);
+  EXPECT_EQ(now.status, pose::TrackStatus::initialising);
+  EXPECT_EQ(now.note, "initialisation started");
+  EXPECT_EQ(job->t_us, t0 + kWindow_us);
+  const pose::InitOutcome outcome = split.run_initialisation(*job);
+  ASSERT_TRUE(outcome.ok) << outcome.note;
+  // The same attempt as process() made on that window, with the same result.
+  EXPECT_EQ(inline_out.T_cam_model.t_cam_model_m, outcome.polished.T_cam_model.t_cam_model_m);
+  EXPECT_EQ(inline_out.T_cam_model.q_cam_model.coeffs(), outcome.polished.T_cam_model.q_cam_model.coeffs());
+  const auto truth_init = *camera::interpolate(s.scene.trajectory, job->t_us - kWindow_us / 2);
+  const double init_mm = 1000.0 * camera::translation_distance_m(outcome.polished.T_cam_model, truth_init);
+  std::cout << "initialised on the window ending " << job->t_us << " us: " << init_mm << " mm, "
+            << camera::rotation_angle_deg(outcome.polished.T_cam_model, truth_init) << " deg from the truth\n";
+  EXPECT_LT(init_mm, 15.0);
+  t0 += kWindow_us;
+
+  // Two windows pass while the attempt "runs"; the third receives its outcome and is tracked from it.
+  for (int i = 0; i < 2; ++i, t0 += kWindow_us) {
+    const auto out = split.initialising_window(s.window(t0, t0 + kWindow_us), t0 + kWindow_us);
+    EXPECT_FALSE(out.pose_valid);
+    EXPECT_EQ(out.status, pose::TrackStatus::initialising);
+    EXPECT_EQ(out.note, "initialisation in progress");
+  }
+  const auto first = split.complete_initialisation(outcome, s.window(t0, t0 + kWindow_us), t0 + kWindow_us);
+  ASSERT_TRUE(first.pose_valid) << first.note;
+  EXPECT_TRUE(first.initialised_now);
+  EXPECT_EQ(first.t_us, t0 + kWindow_us);
+  EXPECT_EQ(first.status, pose::TrackStatus::tracking);
+  const auto truth = *camera::interpolate(s.scene.trajectory, t0 + kWindow_us / 2);
+  EXPECT_LT(1000.0 * camera::translation_distance_m(first.T_cam_model, truth), 15.0);
+  EXPECT_LT(camera::rotation_angle_deg(first.T_cam_model, truth), 3.0);
+  const auto& c = split.counters();
+  EXPECT_EQ(c.init_attempts, attempts_before + 1);
+  EXPECT_EQ(c.init_successes, 1u);
+  EXPECT_EQ(c.windows, windows_before + 4);
+  EXPECT_EQ(c.windows_by_status[0] + c.windows_by_status[1] + c.windows_by_status[2], c.windows);
+
+  // An outcome that comes back after a reset() (a clock jump, a reconnect) belongs to the old track.
+  split.reset();
+  t0 += kWindow_us;
+  const auto stale = split.complete_initialisation(outcome, s.window(t0, t0 + kWindow_us), t0 + kWindow_us);
+  EXPECT_FALSE(stale.pose_valid);
+  EXPECT_EQ(stale.status, pose::TrackStatus::initialising);
+  EXPECT_TRUE(split.needs_initialisation());
+}

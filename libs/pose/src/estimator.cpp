@@ -38,6 +38,7 @@ PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model
 }
 
 void PoseEstimator::reset() {
+  ++generation_;
   recent_.clear();
   last_.reset();
   previous_.reset();
@@ -63,7 +64,21 @@ camera::Pose PoseEstimator::predict(std::int64_t t_end_us) const {
   return step * last_->pose;
 }
 
-PoseEstimate PoseEstimator::initialise(EventSpan window, std::int64_t t_end_us) {
+namespace {
+
+// A healthy tracking update as the window's valid pose.
+void publish_update(const TrackUpdate& u, PoseEstimate& out) {
+  out.T_cam_model = u.T_cam_model;
+  out.pose_valid = true;
+  out.covariance = u.covariance;
+  out.covariance_known = u.covariance_known;
+  out.inliers = u.inliers;
+  out.sigma_px = u.sigma_px;
+}
+
+}  // namespace
+
+PoseEstimate PoseEstimator::held_estimate(EventSpan window, std::int64_t t_end_us) const {
   PoseEstimate out;
   out.t_us = t_end_us;
   out.window_events = window.size();
@@ -73,51 +88,113 @@ PoseEstimate PoseEstimator::initialise(EventSpan window, std::int64_t t_end_us) 
   } else if (prior_) {
     out.T_cam_model = prior_->pose;
   }
+  return out;
+}
+
+std::optional<InitJob> PoseEstimator::prepare_initialisation(EventSpan window, std::int64_t t_end_us,
+                                                             PoseEstimate& now) {
+  ++counters_.windows;
+  remember(window, t_end_us);
+  std::optional<InitJob> job = make_job(window, t_end_us, now);
+  if (job) {
+    now = held_estimate(window, t_end_us);
+    now.note = "initialisation started";
+  }
+  now = counted(std::move(now));
+  return job;
+}
+
+std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_end_us, PoseEstimate& skipped) {
   // The window alone when it is rich enough (the freshest view), else the accumulated events.
-  if (window.size() < options_.init_target_events) window = recent_;
-  if (window.size() < options_.init_min_events) {
-    out.note = fmt::format("{} events in the window, initialisation needs {}", window.size(), options_.init_min_events);
-    return out;
+  const EventSpan events = window.size() < options_.init_target_events ? EventSpan(recent_) : window;
+  if (events.size() < options_.init_min_events) {
+    skipped = held_estimate(window, t_end_us);
+    skipped.note =
+        fmt::format("{} events in the window, initialisation needs {}", events.size(), options_.init_min_events);
+    return std::nullopt;
   }
   ++counters_.init_attempts;
+  InitJob job;
+  job.events.assign(events.begin(), events.end());
+  job.t_us = t_end_us;
+  job.generation = generation_;
   // After a loss search around the last good pose; before the first success around the configured prior.
-  std::optional<camera::PosePrior> search = prior_;
+  job.search = prior_;
   if (last_) {
     camera::PosePrior around;
     around.pose = last_->pose;
     around.position_tolerance_m = options_.reinit_position_tolerance_m;
     around.angle_tolerance_deg = options_.reinit_angle_tolerance_deg;
-    search = around;
+    job.search = around;
+    // The last good pose may itself have been wrong (a track that drifted before it was declared lost): then
+    // search around the configured prior too, every other attempt (the prior is where the target is installed).
+    if (prior_ && counters_.init_attempts % 2 == 0) job.fallback = prior_;
   }
-  InitResult init = initialise_pose(window, camera_, model_, search, options_.init);
-  // The last good pose may itself have been wrong (a track that drifted before it was declared lost): then
-  // search around the configured prior too, every other attempt (the prior is where the target is installed).
-  if (!init.ok && last_ && prior_ && counters_.init_attempts % 2 == 0)
-    init = initialise_pose(window, camera_, model_, prior_, options_.init);
+  return job;
+}
+
+InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
+  InitOutcome out;
+  out.t_us = job.t_us;
+  out.events = job.events.size();
+  out.generation = job.generation;
+  InitResult init = initialise_pose(job.events, camera_, model_, job.search, options_.init);
+  if (!init.ok && job.fallback) init = initialise_pose(job.events, camera_, model_, job.fallback, options_.init);
   if (!init.ok) {
     out.note = "initialisation: " + init.message;
     return out;
   }
-  // Polish the initial pose on this window's events with the tracker so the first published pose carries a
-  // robust scale and a covariance like every later one.
-  const TrackUpdate u = track_window(window, camera_, model_, init.T_cam_model, options_.track);
-  if (!u.healthy) {
-    out.note = "initialisation found a pose but tracking rejected it: " + u.reason;
+  // Polish the initial pose on the job's events with the tracker so the first published pose carries a robust
+  // scale and a covariance like every later one.
+  out.polished = track_window(job.events, camera_, model_, init.T_cam_model, options_.track);
+  if (!out.polished.healthy) {
+    out.note = "initialisation found a pose but tracking rejected it: " + out.polished.reason;
     return out;
   }
+  out.ok = true;
+  return out;
+}
+
+PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, PoseEstimate out) {
+  if (!outcome.ok) {
+    out.note = outcome.note;
+    return out;
+  }
+  const TrackUpdate& u = outcome.polished;
   ++counters_.init_successes;
   previous_.reset();
-  last_ = camera::StampedPose{t_end_us, u.T_cam_model};
+  last_ = camera::StampedPose{outcome.t_us, u.T_cam_model};
   unhealthy_in_a_row_ = 0;
   set_status(TrackStatus::tracking);
   out.status = status_;
-  out.T_cam_model = u.T_cam_model;
-  out.pose_valid = true;
-  out.covariance = u.covariance;
-  out.covariance_known = u.covariance_known;
-  out.inliers = u.inliers;
-  out.sigma_px = u.sigma_px;
+  publish_update(u, out);
   out.initialised_now = true;
+  return out;
+}
+
+PoseEstimate PoseEstimator::initialising_window(EventSpan window, std::int64_t t_end_us) {
+  ++counters_.windows;
+  remember(window, t_end_us);
+  PoseEstimate out = held_estimate(window, t_end_us);
+  out.note = "initialisation in progress";
+  return counted(std::move(out));
+}
+
+PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, EventSpan window,
+                                                    std::int64_t t_end_us) {
+  if (outcome.generation != generation_ || status_ == TrackStatus::tracking) {
+    // Stale (a reset since) or already tracking: this window is an ordinary one.
+    return status_ == TrackStatus::tracking ? process(window, t_end_us) : initialising_window(window, t_end_us);
+  }
+  if (!outcome.ok || outcome.t_us == t_end_us) {
+    ++counters_.windows;
+    remember(window, t_end_us);
+    return counted(apply_initialisation(outcome, held_estimate(window, t_end_us)));
+  }
+  // Found on an earlier window: the track starts there, and this window is its first update.
+  apply_initialisation(outcome, PoseEstimate{});
+  PoseEstimate out = process(window, t_end_us);
+  out.initialised_now = out.pose_valid;
   return out;
 }
 
@@ -146,47 +223,50 @@ EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us) co
 PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
   ++counters_.windows;
   remember(window, t_end_us);
-  PoseEstimate out;
-  if (status_ != TrackStatus::tracking) {
-    out = initialise(window, t_end_us);
-  } else {
-    const camera::Pose predicted = predict(t_end_us);
-    const EventSpan events = tracking_events(window, t_end_us);
-    const TrackUpdate u = track_window(events, camera_, model_, predicted, options_.track);
-    out.t_us = t_end_us;
-    out.window_events = events.size();
-    // A target cannot jump: an update far from the prediction has locked onto other edges (a wrong local
-    // minimum the per-window health test cannot see).
-    const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, predicted) > options_.max_step_m ||
-                                      camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
-    if (u.healthy && !jumped) {
-      unhealthy_in_a_row_ = 0;
-      previous_ = last_;
-      last_ = camera::StampedPose{t_end_us, u.T_cam_model};
-      out.T_cam_model = u.T_cam_model;
-      out.pose_valid = true;
-      out.covariance = u.covariance;
-      out.covariance_known = u.covariance_known;
-      out.inliers = u.inliers;
-      out.sigma_px = u.sigma_px;
-    } else {
-      ++counters_.unhealthy_updates;
-      ++unhealthy_in_a_row_;
-      out.T_cam_model = last_->pose;  // hold the last good pose; not published as valid
-      out.inliers = u.inliers;
-      out.sigma_px = u.sigma_px;
-      out.note = jumped ? fmt::format("tracking: the update moved {:.0f} mm / {:.1f} deg from the prediction",
-                                      1000.0 * camera::translation_distance_m(u.T_cam_model, predicted),
-                                      camera::rotation_angle_deg(u.T_cam_model, predicted))
-                        : "tracking: " + u.reason;
-      if (unhealthy_in_a_row_ >= options_.lost_after_windows) {
-        set_status(TrackStatus::lost);
-        previous_.reset();
-      }
-    }
-    out.status = status_;
-  }
+  if (!needs_initialisation()) return counted(track(window, t_end_us));
+  PoseEstimate skipped;
+  const std::optional<InitJob> job = make_job(window, t_end_us, skipped);
+  if (!job) return counted(std::move(skipped));
+  return counted(apply_initialisation(run_initialisation(*job), held_estimate(window, t_end_us)));
+}
+
+PoseEstimate PoseEstimator::counted(PoseEstimate out) {
   ++counters_.windows_by_status[static_cast<int>(out.status)];
+  return out;
+}
+
+PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us) {
+  PoseEstimate out;
+  const camera::Pose predicted = predict(t_end_us);
+  const EventSpan events = tracking_events(window, t_end_us);
+  const TrackUpdate u = track_window(events, camera_, model_, predicted, options_.track);
+  out.t_us = t_end_us;
+  out.window_events = events.size();
+  // A target cannot jump: an update far from the prediction has locked onto other edges (a wrong local
+  // minimum the per-window health test cannot see).
+  const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, predicted) > options_.max_step_m ||
+                                    camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
+  if (u.healthy && !jumped) {
+    unhealthy_in_a_row_ = 0;
+    previous_ = last_;
+    last_ = camera::StampedPose{t_end_us, u.T_cam_model};
+    publish_update(u, out);
+  } else {
+    ++counters_.unhealthy_updates;
+    ++unhealthy_in_a_row_;
+    out.T_cam_model = last_->pose;  // hold the last good pose; not published as valid
+    out.inliers = u.inliers;
+    out.sigma_px = u.sigma_px;
+    out.note = jumped ? fmt::format("tracking: the update moved {:.0f} mm / {:.1f} deg from the prediction",
+                                    1000.0 * camera::translation_distance_m(u.T_cam_model, predicted),
+                                    camera::rotation_angle_deg(u.T_cam_model, predicted))
+                      : "tracking: " + u.reason;
+    if (unhealthy_in_a_row_ >= options_.lost_after_windows) {
+      set_status(TrackStatus::lost);
+      previous_.reset();
+    }
+  }
+  out.status = status_;
   return out;
 }
 

@@ -26,13 +26,13 @@ double tukey_weight(double u, double c) noexcept {
 }
 
 double s_weight(double u, double c) noexcept {
+  // rho_c(u) / u² without the quotient: with t = 1 - u²/c², 1 - t³ = (u²/c²)(1 + t + t²), so for |u| <= c
+  // rho/u² = (1 + t + t²) / 6 (exact, no cancellation at u = 0, where it is 1/2), and c² / (6u²) beyond.
   const double u2 = u * u;
-  // Near 0 the quotient loses precision: use the series rho/u² = 1/2 - u²/(2c²) + u⁴/(6c⁴).
-  if (u2 < 1e-8 * c * c) {
-    const double c2 = c * c;
-    return 0.5 - u2 / (2.0 * c2) + u2 * u2 / (6.0 * c2 * c2);
-  }
-  return tukey_rho(u, c) / u2;
+  const double c2 = c * c;
+  if (!(u2 <= c2)) return c2 / (6.0 * u2);
+  const double t = 1.0 - u2 / c2;
+  return (1.0 + t + t * t) / 6.0;
 }
 
 double median(std::span<const double> values, std::span<double> scratch) {
@@ -74,12 +74,17 @@ SScaleResult s_scale(std::span<const double> residuals, const SScaleOptions& opt
   }
   const double inv_nb = 1.0 / (static_cast<double>(residuals.size()) * options.b);
   for (int it = 0; it < options.max_iterations; ++it) {
-    const double inv_sigma = 1.0 / sigma;
+    // Σ w_S(d/σ) d² with w_S as in s_weight(), written for a fixed σ so the loop has no division:
+    // (1 + t + t²) d² / 6 with t = 1 - d²/(cσ)² inside, (cσ)² / 6 outside.
+    const double cs2 = options.c * options.c * sigma * sigma;
+    const double inv_cs2 = 1.0 / cs2;
     double acc = 0.0;
-    for (double d : residuals) {
-      const double u = d * inv_sigma;
-      acc += s_weight(u, options.c) * d * d;
+    for (const double d : residuals) {
+      const double d2 = d * d;
+      const double t = 1.0 - d2 * inv_cs2;
+      acc += d2 <= cs2 ? (1.0 + t + t * t) * d2 : cs2;
     }
+    acc /= 6.0;
     const double next = std::sqrt(acc * inv_nb);
     ++r.iterations;
     const double change = std::abs(next / sigma - 1.0);

@@ -139,13 +139,15 @@ double robust_cost(const std::vector<double>& r, double sigma, const TrackerOpti
     }
     return cost;
   }
-  const double inv = 1.0 / sigma;
+  // rho and w of mm::tukey_rho / tukey_weight in one pass: t = 1 - (r / cσ)², rho = (c²/6)(1 - t³), w = t².
+  const double inv_cs2 = 1.0 / (o.c_mm * o.c_mm * sigma * sigma);
   for (std::size_t j = 0; j < r.size(); ++j) {
-    const double u = r[j] * inv;
-    cost += mm::tukey_rho(u, o.c_mm);
-    w_ls[j] = mm::tukey_weight(u, o.c_mm);
+    const double t = 1.0 - r[j] * r[j] * inv_cs2;
+    const bool in = t >= 0.0;
+    cost += in ? 1.0 - t * t * t : 1.0;
+    w_ls[j] = in ? t * t : 0.0;
   }
-  return cost;
+  return cost * (o.c_mm * o.c_mm / 6.0);
 }
 
 RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegment>& segs,

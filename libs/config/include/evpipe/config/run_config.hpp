@@ -65,6 +65,10 @@ struct PoseFilesConfig {
   std::string poses_out;       ///< trajectory CSV of published poses
   std::string ground_truth;    ///< trajectory CSV to compare the poses with (ATE in the summary); replay only
   int lost_after_windows = 3;  ///< consecutive unhealthy tracking updates before the track is declared lost
+  /// Where initialisation attempts run: "on" a worker thread (the pose thread keeps publishing an
+  /// `initialising` status for every window meanwhile), "off" on the pose thread (windows wait for the
+  /// attempt: reproducible, what a lossless replay wants), "auto" = on, except for a replay at --speed max.
+  std::string init_worker = "auto";
 };
 
 struct LcmConfig {

@@ -70,6 +70,26 @@ struct PoseEstimate {
   std::string note;             ///< why the pose is not valid / what happened (empty when tracking normally)
 };
 
+/// One initialisation attempt cut out of the estimator (prepare_initialisation), so that it can run on another
+/// thread: run_initialisation() reads only the estimator's fixed inputs (camera, model, options).
+struct InitJob {
+  std::vector<Event> events;                  ///< the window, or the accumulated events when it is sparse
+  std::int64_t t_us{0};                       ///< the window time a found pose refers to
+  std::optional<camera::PosePrior> search;    ///< searched first: the configured prior, or around the last good pose
+  std::optional<camera::PosePrior> fallback;  ///< searched when the first search fails (every other attempt)
+  std::uint64_t generation{0};                ///< reset() between preparing and completing discards the result
+};
+
+/// What an attempt found.
+struct InitOutcome {
+  std::int64_t t_us{0};
+  std::size_t events{0};
+  bool ok{false};
+  TrackUpdate polished;  ///< the found pose polished by the tracker on the job's events (when ok)
+  std::string note;      ///< why not ok
+  std::uint64_t generation{0};
+};
+
 /// Counters over the estimator's life (for the run summary and the statistics message).
 struct EstimatorCounters {
   std::uint64_t windows{0};
@@ -90,11 +110,33 @@ class PoseEstimator {
   /// Forget the track (after a clock discontinuity or a device reconnect): next window initialises again.
   void reset();
 
+  // Initialisation elsewhere. process() runs an attempt on the window that needs one and returns when it is
+  // done (50-500 ms); a caller that must keep publishing meanwhile splits it (PoseStage with a worker thread):
+  //   needs_initialisation() -> prepare_initialisation(window) -> run_initialisation(job) on the worker,
+  //   initialising_window(window) for each window while it runs, complete_initialisation(outcome, window) once
+  //   it is done. Every call except run_initialisation counts as one window.
+  [[nodiscard]] bool needs_initialisation() const noexcept { return status_ != TrackStatus::tracking; }
+  /// A window that needs initialisation: the job for it (`now` then says the attempt started), or nullopt and
+  /// `now` saying why not (too few events).
+  std::optional<InitJob> prepare_initialisation(EventSpan window, std::int64_t t_end_us, PoseEstimate& now);
+  /// The attempt. Const and touching only the camera, model and options: safe on another thread while the
+  /// owner keeps calling the other members.
+  [[nodiscard]] InitOutcome run_initialisation(const InitJob& job) const;
+  /// A window that arrives while an attempt runs: remembered (it feeds the next attempt), not valid.
+  PoseEstimate initialising_window(EventSpan window, std::int64_t t_end_us);
+  /// Applies a finished attempt. On success the track starts from the found pose (at the job's time) and this
+  /// window is tracked from it (the estimate says initialised_now); an outcome from before a reset() is dropped.
+  PoseEstimate complete_initialisation(const InitOutcome& outcome, EventSpan window, std::int64_t t_end_us);
+
   [[nodiscard]] TrackStatus status() const noexcept { return status_; }
   [[nodiscard]] const EstimatorCounters& counters() const noexcept { return counters_; }
 
  private:
-  PoseEstimate initialise(EventSpan window, std::int64_t t_end_us);
+  std::optional<InitJob> make_job(EventSpan window, std::int64_t t_end_us, PoseEstimate& skipped);
+  [[nodiscard]] PoseEstimate held_estimate(EventSpan window, std::int64_t t_end_us) const;
+  PoseEstimate apply_initialisation(const InitOutcome& outcome, PoseEstimate out);
+  PoseEstimate track(EventSpan window, std::int64_t t_end_us);
+  PoseEstimate counted(PoseEstimate out);
   void remember(EventSpan window, std::int64_t t_us);
   [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us) const;
   [[nodiscard]] camera::Pose predict(std::int64_t t_end_us) const;
@@ -109,6 +151,7 @@ class PoseEstimator {
   std::optional<camera::StampedPose> previous_;  ///< the one before (for constant velocity)
   std::vector<Event> recent_;                    ///< the newest events (init_accumulate_us, at most a few thousand)
   int unhealthy_in_a_row_{0};
+  std::uint64_t generation_{0};
   EstimatorCounters counters_;
 };
 

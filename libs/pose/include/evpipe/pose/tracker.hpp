@@ -63,9 +63,9 @@ struct TrackerOptions {
   // --- IRLS Levenberg-Marquardt on the 6 pose parameters (so(3) left increment, translation).
   int max_iterations = 20;           ///< per round
   double gradient_tolerance = 1e-9;  ///< stop when max|J^T W r| / sum(W) < this (normalised image units)
-  double step_tolerance_rad = 1e-7;  ///< ... or the step is below both of these
-  double step_tolerance_m = 1e-7;
-  double cost_tolerance = 1e-7;  ///< ... or the robust cost changed by less than this fraction
+  double step_tolerance_rad = 1e-5;  ///< ... or the step is below both of these
+  double step_tolerance_m = 1e-5;
+  double cost_tolerance = 1e-5;  ///< ... or the robust cost changed by less than this fraction
   double lambda_initial = 1e-4;  ///< LM damping, relative to diag(J^T W J)
 
   // --- Health (TrackUpdate::healthy).
