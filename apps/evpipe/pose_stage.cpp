@@ -22,6 +22,8 @@ std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg) {
     if (!p.prior.empty()) prior = camera::load_prior(p.prior);
     pose::EstimatorOptions options;
     options.lost_after_windows = p.lost_after_windows;
+    options.track.window_us = cfg.window.length_us;  // the windows the pipeline cuts (and catch-up slices)
+    options.track.step_us = cfg.window.hop_us;
     pose::PoseEstimator estimator(std::move(cam), std::move(model), std::move(prior), options);
     std::optional<camera::TrajectoryCsvWriter> csv;
     if (!p.poses_out.empty()) csv.emplace(p.poses_out, pose_csv_extra_columns());
@@ -66,6 +68,7 @@ pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, doub
     std::optional<pose::InitOutcome> outcome = init_worker_->poll();
     if (!outcome) return estimator_.initialising_window(events, t_us);
     compute_ms = std::chrono::duration<double, std::milli>(init_worker_->last_duration()).count();
+    if (outcome->ok && summary_.first_init_ms == 0) summary_.first_init_ms = compute_ms;
     return estimator_.complete_initialisation(*outcome, events, t_us);
   }
   if (estimator_.needs_initialisation()) {

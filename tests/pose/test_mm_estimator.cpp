@@ -130,6 +130,30 @@ TEST(SScale, EquivarianceAndEdgeCases) {
   EXPECT_TRUE(std::isfinite(mz.sigma));
 }
 
+// The tracker starts each round's S-scale at the previous round's: the fixed point is the same root of
+// mean rho(d / sigma) = b from any start (up to the stopping tolerance), and a start near it needs fewer steps.
+TEST(SScale, AnyStartReachesTheSameScale) {
+  const std::uint64_t seed = 11;
+  std::cout << "seed " << seed << "\n";
+  const auto r = contaminated(5'000, seed);
+  mm::SScaleOptions tight;
+  tight.relative_tolerance = 1e-9;
+  tight.max_iterations = 500;
+  const mm::SScaleResult from_mad = mm::s_scale(r, tight);
+  ASSERT_TRUE(from_mad.converged);
+  for (const double start : {0.1, 0.5, 2.0, 10.0}) {
+    mm::SScaleOptions o = tight;
+    o.start = start * from_mad.sigma;
+    const mm::SScaleResult s = mm::s_scale(r, o);
+    EXPECT_TRUE(s.converged) << start;
+    EXPECT_DOUBLE_EQ(s.sigma_start, o.start);
+    EXPECT_NEAR(s.sigma / from_mad.sigma, 1.0, 1e-6) << "start " << start << " x the scale";
+  }
+  mm::SScaleOptions near;
+  near.start = 1.01 * from_mad.sigma;
+  EXPECT_LE(mm::s_scale(r, near).iterations, mm::s_scale(r).iterations);
+}
+
 TEST(MmWeights, TukeyAtTheScaleAndLopetNormalised) {
   const std::vector<double> r{0.0, 1.0, -2.0, 4.685, 5.0, -100.0};
   std::vector<double> w(r.size());

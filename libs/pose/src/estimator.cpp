@@ -39,6 +39,7 @@ PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model
 
 void PoseEstimator::reset() {
   ++generation_;
+  attempt_t_us_.reset();
   recent_.clear();
   last_.reset();
   previous_.reset();
@@ -97,6 +98,7 @@ std::optional<InitJob> PoseEstimator::prepare_initialisation(EventSpan window, s
   remember(window, t_end_us);
   std::optional<InitJob> job = make_job(window, t_end_us, now);
   if (job) {
+    attempt_t_us_ = t_end_us;  // remember every event from here until the outcome (the catch-up needs them)
     now = held_estimate(window, t_end_us);
     now.note = "initialisation started";
   }
@@ -182,6 +184,7 @@ PoseEstimate PoseEstimator::initialising_window(EventSpan window, std::int64_t t
 
 PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, EventSpan window,
                                                     std::int64_t t_end_us) {
+  attempt_t_us_.reset();
   if (outcome.generation != generation_ || status_ == TrackStatus::tracking) {
     // Stale (a reset since) or already tracking: this window is an ordinary one.
     return status_ == TrackStatus::tracking ? process(window, t_end_us) : initialising_window(window, t_end_us);
@@ -191,11 +194,26 @@ PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, 
     remember(window, t_end_us);
     return counted(apply_initialisation(outcome, held_estimate(window, t_end_us)));
   }
-  // Found on an earlier window: the track starts there, and this window is its first update.
+  // Found on an earlier window: the track starts there. The target moved while the attempt ran, so the windows
+  // that passed meanwhile are tracked first, on the remembered events (window_us slices at step_us), each from the
+  // one before: the current window then starts from a pose one step old, not one attempt old.
   apply_initialisation(outcome, PoseEstimate{});
-  PoseEstimate out = process(window, t_end_us);
+  const std::int64_t length = std::max<std::int64_t>(options_.track.window_us, 1);
+  const std::int64_t step = std::max<std::int64_t>(options_.track.step_us, 1);
+  for (std::int64_t t = outcome.t_us + step; t + step <= t_end_us && status_ == TrackStatus::tracking; t += step) {
+    const auto first = std::lower_bound(recent_.begin(), recent_.end(), t - length / 2,
+                                        [](const Event& e, std::int64_t v) { return e.t_us < v; });
+    const auto last = std::lower_bound(first, recent_.end(), t + length - length / 2,
+                                       [](const Event& e, std::int64_t v) { return e.t_us < v; });
+    if (first == last && first == recent_.begin()) continue;  // before the remembered events
+    (void)track(EventSpan(first, last), t, EventSpan(recent_.begin(), last));
+  }
+  ++counters_.windows;
+  remember(window, t_end_us);
+  PoseEstimate out =
+      status_ == TrackStatus::tracking ? track(window, t_end_us, recent_) : held_estimate(window, t_end_us);
   out.initialised_now = out.pose_valid;
-  return out;
+  return counted(std::move(out));
 }
 
 void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
@@ -203,27 +221,31 @@ void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
   const std::int64_t newest_held = recent_.empty() ? std::numeric_limits<std::int64_t>::min() : recent_.back().t_us;
   for (const Event& e : window)
     if (e.t_us > newest_held) recent_.push_back(e);
-  const std::int64_t oldest_kept = t_us - options_.init_accumulate_us;
-  const std::size_t cap = std::max({options_.init_target_events, options_.track_min_events, window.size()});
+  std::int64_t oldest_kept = t_us - options_.init_accumulate_us;
+  std::size_t cap = std::max({options_.init_target_events, options_.track_min_events, window.size()});
+  if (attempt_t_us_) {  // an attempt runs elsewhere: keep what the catch-up will track, within a bound
+    oldest_kept = std::min(oldest_kept, *attempt_t_us_ - options_.track.window_us);
+    cap = std::max(cap, kCatchUpMaxEvents);
+  }
   std::size_t drop = 0;
   while (drop < recent_.size() && (recent_[drop].t_us < oldest_kept || recent_.size() - drop > cap)) ++drop;
   recent_.erase(recent_.begin(), recent_.begin() + static_cast<std::ptrdiff_t>(drop));
 }
 
-EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us) const {
+EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const {
   // A rich window alone; an (almost) empty one alone too: the target has gone, old events must not hide that.
   if (window.size() >= options_.track_min_events || window.size() < options_.track_min_window_events) return window;
   // A sparse window: the newest track_min_events events, but none older than track_max_span_us.
-  auto first = recent_.end() - static_cast<std::ptrdiff_t>(std::min(recent_.size(), options_.track_min_events));
-  while (first != recent_.end() && first->t_us < t_us - options_.track_max_span_us) ++first;
-  const EventSpan extended(first, recent_.end());
+  auto first = history.end() - static_cast<std::ptrdiff_t>(std::min(history.size(), options_.track_min_events));
+  while (first != history.end() && first->t_us < t_us - options_.track_max_span_us) ++first;
+  const EventSpan extended(first, history.end());
   return extended.size() > window.size() ? extended : window;
 }
 
 PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
   ++counters_.windows;
   remember(window, t_end_us);
-  if (!needs_initialisation()) return counted(track(window, t_end_us));
+  if (!needs_initialisation()) return counted(track(window, t_end_us, recent_));
   PoseEstimate skipped;
   const std::optional<InitJob> job = make_job(window, t_end_us, skipped);
   if (!job) return counted(std::move(skipped));
@@ -235,10 +257,10 @@ PoseEstimate PoseEstimator::counted(PoseEstimate out) {
   return out;
 }
 
-PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us) {
+PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, EventSpan history) {
   PoseEstimate out;
   const camera::Pose predicted = predict(t_end_us);
-  const EventSpan events = tracking_events(window, t_end_us);
+  const EventSpan events = tracking_events(window, t_end_us, history);
   const TrackUpdate u = track_window(events, camera_, model_, predicted, options_.track);
   out.t_us = t_end_us;
   out.window_events = events.size();

@@ -60,7 +60,7 @@ double mad(std::span<const double> values) {
 SScaleResult s_scale(std::span<const double> residuals, const SScaleOptions& options) {
   SScaleResult r;
   if (residuals.empty()) return r;
-  double sigma = kMadToSigma * mad(residuals);
+  double sigma = options.start > 0.0 && std::isfinite(options.start) ? options.start : kMadToSigma * mad(residuals);
   if (!(sigma > 0.0)) {
     double ss = 0.0;
     for (double d : residuals) ss += d * d;

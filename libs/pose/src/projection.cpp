@@ -193,13 +193,17 @@ struct Candidate {
 // Nearest and second-nearest of the candidates, then the gates; appends the association when the event passes
 // them. Candidates come sorted by their bound, and the loop stops as soon as no remaining one can change the
 // outcome: all remaining are further than the second-nearest so far, or further than the nearest and than both
-// ambiguity thresholds (the nearest, its distance and both ambiguity tests then stay as they are). Equal nearest
+// ambiguity thresholds (the nearest, its distance and both ambiguity tests then stay as they are), or — with
+// none inside the gate yet — beyond the gate (the event then fails the distance gate whatever they are). Equal nearest
 // distances resolve to the lower segment index, so the result equals the loop over every segment in index order.
 void decide_sorted(std::uint32_t i, const Eigen::Vector2d& p, const std::vector<SegGeom>& segs, const Candidate* begin,
                    const Candidate* end, const Gates& g, std::vector<Association>& out) {
   double best = std::numeric_limits<double>::infinity(), second = best;
   std::uint32_t best_k = 0;
   for (const Candidate* c = begin; c != end; ++c) {
+    // Nothing inside the gate so far and every remaining segment at least a gate away: not associated,
+    // whatever the rest (most of a noisy window's events end here, at their cell's first candidates).
+    if (c->lower2 >= g.gate2 && !(best < g.gate2)) return;
     if (c->lower2 > second) break;
     if (c->lower2 > best && c->lower2 > std::max(g.ratio2 * best, g.junction2)) break;
     const double d2 = distance2(segs[c->k], p);
@@ -322,7 +326,12 @@ void associate_events(const GatheredEvents& events, const UndistortMap& map,
   }
   for (std::size_t j = 0; j < events.index.size(); ++j) {
     const std::uint32_t c = events.cell[j];
-    decide_sorted(events.index[j], events.p_n[j], segs, list.data() + first[c], list.data() + first[c + 1], g, out);
+    const Candidate* b = list.data() + first[c];
+    const Candidate* e = list.data() + first[c + 1];
+    // decide_sorted's first test, before the call: most events of a noisy window are in cells with no segment
+    // within the gate.
+    if (b == e || b->lower2 >= g.gate2) continue;
+    decide_sorted(events.index[j], events.p_n[j], segs, b, e, g, out);
   }
 }
 

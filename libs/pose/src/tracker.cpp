@@ -151,7 +151,8 @@ double robust_cost(const std::vector<double>& r, double sigma, const TrackerOpti
 }
 
 RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegment>& segs,
-                        const std::vector<Association>& assoc, double sigma_floor_n, const TrackerOptions& o) {
+                        const std::vector<Association>& assoc, double sigma_floor_n, double sigma_previous_n,
+                        const TrackerOptions& o) {
   RoundResult res;
   res.T = T0;
   const double near_m = std::max(o.projection.near_m, 1e-6);
@@ -167,6 +168,7 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
     so.c = o.c_s;
     so.b = o.b_s;
     so.max_iterations = o.s_max_iterations;
+    so.start = sigma_previous_n;  // the previous round's scale: the same root, without a median per round
     res.sigma_n = std::max(mm::s_scale(r, so).sigma, sigma_floor_n);
   }
   double cost = robust_cost(r, res.sigma_n, o, w, scratch);
@@ -347,7 +349,7 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
       up.associated = assoc.size();
       return up;
     }
-    const RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, o);
+    const RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, sigma_n, o);
     T = rr.T;
     sigma_n = rr.sigma_n;
     up.iterations += rr.iterations;

@@ -135,10 +135,11 @@ class PoseEstimator {
   std::optional<InitJob> make_job(EventSpan window, std::int64_t t_end_us, PoseEstimate& skipped);
   [[nodiscard]] PoseEstimate held_estimate(EventSpan window, std::int64_t t_end_us) const;
   PoseEstimate apply_initialisation(const InitOutcome& outcome, PoseEstimate out);
-  PoseEstimate track(EventSpan window, std::int64_t t_end_us);
+  /// history: the remembered events up to this window (recent_, or a prefix of it when catching up).
+  PoseEstimate track(EventSpan window, std::int64_t t_end_us, EventSpan history);
   PoseEstimate counted(PoseEstimate out);
   void remember(EventSpan window, std::int64_t t_us);
-  [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us) const;
+  [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const;
   [[nodiscard]] camera::Pose predict(std::int64_t t_end_us) const;
   void set_status(TrackStatus s);
 
@@ -152,6 +153,10 @@ class PoseEstimator {
   std::vector<Event> recent_;                    ///< the newest events (init_accumulate_us, at most a few thousand)
   int unhealthy_in_a_row_{0};
   std::uint64_t generation_{0};
+  std::optional<std::int64_t> attempt_t_us_;  ///< an attempt prepared and not completed: its window's time
+  /// While an attempt runs elsewhere every event since its window is remembered for the catch-up, up to this
+  /// many (3.2 MB; 0.2 s at 1 Mev/s): a longer attempt catches up over the newest.
+  static constexpr std::size_t kCatchUpMaxEvents = 200'000;
   EstimatorCounters counters_;
 };
 

@@ -41,11 +41,14 @@ struct SScaleOptions {
   double b = kSB;
   int max_iterations = 10;
   double relative_tolerance = 1e-3;  ///< stop when |sigma_new / sigma - 1| < this
+  /// > 0: start the iteration here instead of at 1.4826 MAD (the fixed point is the same: mean rho(d/sigma) is
+  /// decreasing in sigma, so the equation has one root, and the iteration reaches it from any positive start).
+  double start = 0.0;
 };
 
 struct SScaleResult {
   double sigma{0.0};        ///< the S-scale (residual units); 0 when every residual is 0 or none given
-  double sigma_start{0.0};  ///< 1.4826 MAD (or the RMS when MAD = 0)
+  double sigma_start{0.0};  ///< options.start, else 1.4826 MAD (or the RMS when MAD = 0)
   int iterations{0};
   bool converged{false};
 };
