@@ -56,20 +56,24 @@ PoseStage::PoseStage(pose::PoseEstimator estimator, std::optional<camera::Trajec
 
 PoseStage::~PoseStage() = default;
 
-pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, double& compute_ms) {
+pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, double& init_ms) {
   if (!init_worker_) {
     const auto t0 = std::chrono::steady_clock::now();
     auto e = estimator_.process(events, t_us);
-    compute_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (e.initialised_now)
+      init_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return e;
   }
   // An attempt runs on the worker: this window waits for nothing.
   if (init_worker_->pending()) {
     std::optional<pose::InitOutcome> outcome = init_worker_->poll();
     if (!outcome) return estimator_.initialising_window(events, t_us);
-    compute_ms = std::chrono::duration<double, std::milli>(init_worker_->last_duration()).count();
-    if (outcome->ok && summary_.first_init_ms == 0) summary_.first_init_ms = compute_ms;
-    return estimator_.complete_initialisation(*outcome, events, t_us);
+    const std::uint64_t before = estimator_.counters().init_successes;
+    auto e = estimator_.complete_initialisation(*outcome, events, t_us);
+    if (estimator_.counters().init_successes > before) {  // applied (not dropped as stale)
+      init_ms = std::chrono::duration<double, std::milli>(init_worker_->last_duration()).count();
+    }
+    return e;
   }
   if (estimator_.needs_initialisation()) {
     pose::PoseEstimate now;
@@ -78,10 +82,7 @@ pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, doub
     if (job) init_worker_->submit([this, j = std::move(*job)] { return estimator_.run_initialisation(j); });
     return now;
   }
-  const auto t0 = std::chrono::steady_clock::now();
-  auto e = estimator_.process(events, t_us);
-  compute_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  return e;
+  return estimator_.process(events, t_us);
 }
 
 pose::PoseEstimate PoseStage::process(const EventWindow& window) {
@@ -98,11 +99,15 @@ pose::PoseEstimate PoseStage::process(const EventWindow& window) {
   }
   // The pose is fitted to all events of the window: it best represents the window's middle, which is the
   // time it is stamped with (a 30 ms window lags its end by 15 ms).
-  double ms = 0.0;
-  auto estimate = this->estimate(events, window.t0_us + (window.t1_us - window.t0_us) / 2, ms);
-  if (estimate.initialised_now && summary_.first_init_ms == 0) summary_.first_init_ms = ms;
+  // Timed on this thread: an update, or the window that applies a worker's attempt (with its catch-up); an
+  // attempt in line is reported as the initialisation time instead, one on the worker by its own duration.
+  double init_ms = 0.0;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto estimate = this->estimate(events, window.t0_us + (window.t1_us - window.t0_us) / 2, init_ms);
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (init_ms > 0.0 && summary_.first_init_ms == 0) summary_.first_init_ms = init_ms;
   if (estimate.pose_valid) {
-    if (!estimate.initialised_now) summary_.update_ms.push_back(ms);
+    if (!(estimate.initialised_now && !init_worker_)) summary_.update_ms.push_back(ms);
     if (summary_.valid_poses == 0) summary_.first_valid_t_us = estimate.t_us;
     summary_.last_valid_t_us = estimate.t_us;
     ++summary_.valid_poses;

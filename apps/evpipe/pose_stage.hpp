@@ -24,9 +24,11 @@ struct PoseSummary {
   std::uint64_t valid_poses = 0;
   std::uint64_t windows_by_status[3] = {0, 0, 0};
   std::uint64_t init_attempts = 0, init_successes = 0, losses = 0;
-  double first_init_ms = 0;       ///< compute time of the first successful initialisation attempt
-  bool init_worker = false;       ///< attempts ran on a worker thread
-  std::vector<double> update_ms;  ///< compute time per tracked window (for percentiles)
+  double first_init_ms = 0;  ///< compute time of the first successful initialisation attempt
+  bool init_worker = false;  ///< attempts ran on a worker thread
+  /// Pose-thread compute time per valid window (for percentiles): tracking updates, and with the worker also the
+  /// window that applies an attempt (its catch-up included); not an attempt run in line.
+  std::vector<double> update_ms;
   std::int64_t first_valid_t_us = 0, last_valid_t_us = 0;
   std::string poses_out;
   std::string last_note;  ///< the latest reason a window produced no valid pose
@@ -53,7 +55,8 @@ class PoseStage {
  private:
   PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv, std::string csv_path,
             bool init_worker);
-  pose::PoseEstimate estimate(EventSpan events, std::int64_t t_us, double& compute_ms);
+  /// init_ms: set to the attempt's compute time when this window's initialisation succeeded.
+  pose::PoseEstimate estimate(EventSpan events, std::int64_t t_us, double& init_ms);
 
   pose::PoseEstimator estimator_;
   // Declared after the estimator: destroyed (joined) first, while the estimator its job reads still exists.

@@ -152,6 +152,12 @@ TEST(SScale, AnyStartReachesTheSameScale) {
   mm::SScaleOptions near;
   near.start = 1.01 * from_mad.sigma;
   EXPECT_LE(mm::s_scale(r, near).iterations, mm::s_scale(r).iterations);
+  // Every residual 0 from a positive start: 0, not NaN (the first step lands on 0).
+  mm::SScaleOptions from_one;
+  from_one.start = 1.0;
+  const auto zero = mm::s_scale(std::vector<double>(10, 0.0), from_one);
+  EXPECT_EQ(zero.sigma, 0.0);
+  EXPECT_TRUE(zero.converged);
 }
 
 TEST(MmWeights, TukeyAtTheScaleAndLopetNormalised) {

@@ -195,23 +195,32 @@ PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, 
     return counted(apply_initialisation(outcome, held_estimate(window, t_end_us)));
   }
   // Found on an earlier window: the track starts there. The target moved while the attempt ran, so the windows
-  // that passed meanwhile are tracked first, on the remembered events (window_us slices at step_us), each from the
-  // one before: the current window then starts from a pose one step old, not one attempt old.
+  // that passed meanwhile are tracked first, on the remembered events (window_us slices centred on their times,
+  // step_us apart, at most kCatchUpMaxSlices: a long attempt is crossed in longer strides), each from the one
+  // before: the current window then starts from a recent pose, not from where the target was when the attempt
+  // began. Slices too sparse to track (not remembered, or windows dropped upstream) are skipped.
   apply_initialisation(outcome, PoseEstimate{});
   const std::int64_t length = std::max<std::int64_t>(options_.track.window_us, 1);
-  const std::int64_t step = std::max<std::int64_t>(options_.track.step_us, 1);
+  const std::int64_t span = t_end_us - outcome.t_us;
+  const std::int64_t step = std::max({options_.track.step_us, span / (kCatchUpMaxSlices + 1), std::int64_t{1}});
+  int slices = 0;
   for (std::int64_t t = outcome.t_us + step; t + step <= t_end_us && status_ == TrackStatus::tracking; t += step) {
     const auto first = std::lower_bound(recent_.begin(), recent_.end(), t - length / 2,
                                         [](const Event& e, std::int64_t v) { return e.t_us < v; });
     const auto last = std::lower_bound(first, recent_.end(), t + length - length / 2,
                                        [](const Event& e, std::int64_t v) { return e.t_us < v; });
-    if (first == last && first == recent_.begin()) continue;  // before the remembered events
+    if (static_cast<std::size_t>(last - first) < options_.track_min_window_events) continue;
     (void)track(EventSpan(first, last), t, EventSpan(recent_.begin(), last));
+    ++slices;
   }
   ++counters_.windows;
   remember(window, t_end_us);
   PoseEstimate out =
       status_ == TrackStatus::tracking ? track(window, t_end_us, recent_) : held_estimate(window, t_end_us);
+  if (out.note.empty() && !out.pose_valid) {
+    out.note =
+        fmt::format("initialisation succeeded, but the track was lost catching up the {} windows it took", slices);
+  }
   out.initialised_now = out.pose_valid;
   return counted(std::move(out));
 }

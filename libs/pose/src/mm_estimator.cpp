@@ -87,6 +87,11 @@ SScaleResult s_scale(std::span<const double> residuals, const SScaleOptions& opt
     acc /= 6.0;
     const double next = std::sqrt(acc * inv_nb);
     ++r.iterations;
+    if (!(next > 0.0)) {  // every residual 0 (reachable from a positive start): the scale is 0
+      sigma = 0.0;
+      r.converged = true;
+      break;
+    }
     const double change = std::abs(next / sigma - 1.0);
     sigma = next;
     if (change < options.relative_tolerance) {

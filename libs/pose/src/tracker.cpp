@@ -168,8 +168,14 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
     so.c = o.c_s;
     so.b = o.b_s;
     so.max_iterations = o.s_max_iterations;
-    so.start = sigma_previous_n;  // the previous round's scale: the same root, without a median per round
-    res.sigma_n = std::max(mm::s_scale(r, so).sigma, sigma_floor_n);
+    if (sigma_previous_n > 0.0) {
+      // The previous round's scale: the same root without a median per round. It was fitted with a wider gate,
+      // so it starts above the root, and the fixed point contracts by only ~0.6-0.75 per step: more steps.
+      so.start = sigma_previous_n;
+      so.max_iterations = 3 * o.s_max_iterations;
+    }
+    const double s = mm::s_scale(r, so).sigma;
+    res.sigma_n = s >= sigma_floor_n ? s : sigma_floor_n;  // NaN-safe floor
   }
   double cost = robust_cost(r, res.sigma_n, o, w, scratch);
   double lambda = o.lambda_initial;

@@ -2,7 +2,7 @@
 // One worker thread that runs one job at a time for a stage that must not wait for it: the pose stage hands an
 // initialisation attempt (50-500 ms) to it and keeps publishing a status for every window meanwhile. Submitting
 // never blocks (a busy worker refuses the job); the result is collected by polling. The thread starts with the
-// first job and is joined by the destructor, which waits for a job still running (none is abandoned half-way:
+// object and is joined by the destructor, which waits for a job still running (none is abandoned half-way:
 // its inputs are owned by the job) and drops one not yet started. A job that throws hands its exception to
 // poll(), which rethrows it on the owner's thread.
 
@@ -22,7 +22,8 @@ namespace evpipe::pipeline {
 template <class Result>
 class BackgroundTask {
  public:
-  explicit BackgroundTask(std::string name) : name_(std::move(name)) {}
+  /// Starts the worker thread (a failure to create it throws here, not on a later submit).
+  explicit BackgroundTask(std::string name) : name_(std::move(name)), thread_([this] { run(); }) {}
   BackgroundTask(const BackgroundTask&) = delete;
   BackgroundTask& operator=(const BackgroundTask&) = delete;
   ~BackgroundTask() {
@@ -44,7 +45,6 @@ class BackgroundTask {
       job_ = std::move(job);
       ++submitted_;
     }
-    if (!thread_.joinable()) thread_ = std::thread([this] { run(); });
     wake_.notify_one();
     return true;
   }

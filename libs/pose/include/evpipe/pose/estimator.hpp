@@ -57,7 +57,7 @@ struct EstimatorOptions {
 
 /// The result of one window.
 struct PoseEstimate {
-  std::int64_t t_us{0};  ///< sensor time the pose refers to (the window's end)
+  std::int64_t t_us{0};  ///< sensor time the pose refers to (the time passed with the window)
   camera::Pose T_cam_model;
   bool pose_valid{false};  ///< false while initialising / lost: T_cam_model is the last good pose or the prior
   Covariance6 covariance{Covariance6::Zero()};
@@ -105,7 +105,10 @@ class PoseEstimator {
   /// Throws std::invalid_argument when the options are invalid or the model has fewer than 4 segments.
   PoseEstimator(camera::CameraModel camera, camera::LineModel model, std::optional<camera::PosePrior> prior,
                 EstimatorOptions options = {});
-  /// One window of denoised events ending at t_end_us (events time-ordered).
+  /// One window of denoised events (time-ordered) and the sensor time its pose refers to. evpipe passes the
+  /// window's middle (a pose fitted to a whole window represents its middle); the catch-up after an attempt
+  /// run elsewhere cuts its slices centred on such times (a caller passing window ends gets slices half a
+  /// window late, which only costs their newest half).
   PoseEstimate process(EventSpan window, std::int64_t t_end_us);
   /// Forget the track (after a clock discontinuity or a device reconnect): next window initialises again.
   void reset();
@@ -157,6 +160,8 @@ class PoseEstimator {
   /// While an attempt runs elsewhere every event since its window is remembered for the catch-up, up to this
   /// many (3.2 MB; 0.2 s at 1 Mev/s): a longer attempt catches up over the newest.
   static constexpr std::size_t kCatchUpMaxEvents = 200'000;
+  /// At most this many tracking updates catch up an attempt (~1 ms each, on the window that applies it).
+  static constexpr std::int64_t kCatchUpMaxSlices = 8;
   EstimatorCounters counters_;
 };
 
