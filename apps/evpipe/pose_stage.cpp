@@ -51,7 +51,8 @@ PoseStage::PoseStage(pose::PoseEstimator estimator, std::optional<camera::Trajec
   summary_.enabled = true;
   summary_.poses_out = std::move(csv_path);
   summary_.init_worker = init_worker;
-  if (init_worker) init_worker_ = std::make_unique<pipeline::BackgroundTask<pose::InitOutcome>>("pose-init");
+  // nice +10: an attempt uses whatever CPU the stages leave (on 2 cores it would otherwise delay them).
+  if (init_worker) init_worker_ = std::make_unique<pipeline::BackgroundTask<pose::InitOutcome>>("evpipe-init", 10);
 }
 
 PoseStage::~PoseStage() = default;

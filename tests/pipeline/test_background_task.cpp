@@ -1,12 +1,19 @@
 // BackgroundTask: one job at a time on a worker thread, never blocking the owner (runs under TSan in CI).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <future>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
+
+#include <pthread.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include "evpipe/pipeline/background_task.hpp"
 
@@ -101,4 +108,21 @@ TEST(BackgroundTask, OwnerKeepsWorkingWhileTheJobRuns) {
   }
   EXPECT_EQ(shared_with_jobs.load(), 5);
   EXPECT_GT(polls, 5);  // the owner went on while the jobs ran
+}
+
+TEST(BackgroundTask, TheWorkerRunsNamedAndAtALowerPriority) {
+  const auto nice_of_this_thread = [] { return getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid))); };
+  const int owner = nice_of_this_thread();
+  BackgroundTask<std::pair<int, std::string>> task("evpipe-init", 5);
+  ASSERT_TRUE(task.submit([&] {
+    char name[16] = {};
+    pthread_getname_np(pthread_self(), name, sizeof name);
+    return std::make_pair(nice_of_this_thread(), std::string(name));
+  }));
+  task.wait();
+  const auto r = task.poll();
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->first, std::min(owner + 5, 19));  // nice values stop at 19
+  EXPECT_EQ(r->second, "evpipe-init");
+  EXPECT_EQ(nice_of_this_thread(), owner);  // per thread: the owner is untouched
 }
