@@ -171,9 +171,12 @@ TEST(EvpipePoseWorker, InitialisesOnAWorkerWhileEveryWindowIsPublished) {
   EXPECT_EQ(json_field(paced.out, "lcm_poses"), json_field(paced.out, "pose_windows")) << paced.out;
   EXPECT_GE(std::stoi(json_field(paced.out, "pose_init_successes")), 1) << paced.out;
   const auto est = evpipe::camera::read_trajectory_csv(poses);
-  // Of 66 windows; measured 63 (Release) and 39 (ASan, before the catch-up after a slow attempt): at --speed 1
-  // the windows that pass while an attempt runs are not valid poses, and an attempt takes 10x longer under ASan.
-  EXPECT_GE(est.size(), 30u) << paced.out;
+  // At --speed 1 the windows that pass while the attempt runs are not valid poses, and an attempt takes ~10x longer
+  // under ASan (measured 63 of 66 valid in Release, 39 under ASan): how many windows it takes is timing. What must
+  // hold: once the track has started it continues — a valid pose for (nearly) every 30 ms window after the first.
+  ASSERT_GE(est.size(), 10u) << paced.out;
+  const auto windows_since_first = static_cast<std::size_t>((est.back().t_us - est.front().t_us) / 30'000 + 1);
+  EXPECT_GE(est.size() * 10, windows_since_first * 9) << est.size() << " valid of " << windows_since_first;
   const auto a = ate(est, gt);
   std::cout << "--speed 1: " << est.size() << " poses, ATE RMSE " << a.rmse_mm << " mm, max " << a.max_mm
             << " mm, first initialisation " << json_field(paced.out, "pose_init_ms") << " ms\n";

@@ -272,10 +272,10 @@ TEST(Tracker, ConvergesFromFiveCmTenDegrees) {
   o.recovery_tilt_deg = 7.0;
   const Tally t = run_scenes(0.05, 10.0, o, "5cm/10deg");
   // Measured with these seeds: every noise-free scene converges (without the extra starts: 14/18, the
-  // roadheader's dense wireframe trapped the nearest-segment association in 4); 6/18 on raw 5 Hz/px windows; 13/18
-  // on the same windows through the curvature filter — the 5 misses are sparse planar windows (< 550 events,
-  // rotation 1.0-2.1 deg off with the translation within 8 mm: the tilt is weakly observable) that miss from
-  // 1 cm / 2 deg as well, and one roadheader window.
+  // roadheader's dense wireframe trapped the nearest-segment association in 4); 6/18 on raw 5 Hz/px windows; 14/18
+  // on the same windows through the curvature filter (13 before the S-scale's warm start) — the 4 misses are
+  // sparse planar windows (< 550 events, rotation 1.7-2.1 deg off with the translation within 8 mm: the tilt is
+  // weakly observable) that miss from 1 cm / 2 deg as well, and one roadheader window.
   EXPECT_EQ(t.planar_noise_free, 9);
   EXPECT_EQ(t.converged[0], 18);
   EXPECT_GE(t.converged[1], 6);
