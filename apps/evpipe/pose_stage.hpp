@@ -55,7 +55,7 @@ class PoseStage {
  private:
   PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv, std::string csv_path,
             bool init_worker);
-  /// init_ms: set to the attempt's compute time when this window's initialisation succeeded.
+  /// init_ms: set to the worker's compute time when this window applied its successful attempt.
   pose::PoseEstimate estimate(EventSpan events, std::int64_t t_us, double& init_ms);
 
   pose::PoseEstimator estimator_;

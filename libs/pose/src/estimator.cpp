@@ -138,7 +138,6 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
 InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   InitOutcome out;
   out.t_us = job.t_us;
-  out.events = job.events.size();
   out.generation = job.generation;
   InitResult init = initialise_pose(job.events, camera_, model_, job.search, options_.init);
   if (!init.ok && job.fallback) init = initialise_pose(job.events, camera_, model_, job.fallback, options_.init);
@@ -204,11 +203,10 @@ PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, 
   const std::int64_t span = t_end_us - outcome.t_us;
   const std::int64_t step = std::max({options_.track.step_us, span / (kCatchUpMaxSlices + 1), std::int64_t{1}});
   int slices = 0;
+  const auto before = [](const Event& e, std::int64_t v) { return e.t_us < v; };
   for (std::int64_t t = outcome.t_us + step; t + step <= t_end_us && status_ == TrackStatus::tracking; t += step) {
-    const auto first = std::lower_bound(recent_.begin(), recent_.end(), t - length / 2,
-                                        [](const Event& e, std::int64_t v) { return e.t_us < v; });
-    const auto last = std::lower_bound(first, recent_.end(), t + length - length / 2,
-                                       [](const Event& e, std::int64_t v) { return e.t_us < v; });
+    const auto first = std::lower_bound(recent_.begin(), recent_.end(), t - length / 2, before);
+    const auto last = std::lower_bound(first, recent_.end(), t + length - length / 2, before);
     if (static_cast<std::size_t>(last - first) < options_.track_min_window_events) continue;
     (void)track(EventSpan(first, last), t, EventSpan(recent_.begin(), last));
     ++slices;

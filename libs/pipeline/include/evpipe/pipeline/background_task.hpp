@@ -42,8 +42,6 @@ class BackgroundTask {
     if (thread_.joinable()) thread_.join();
   }
 
-  [[nodiscard]] const std::string& name() const noexcept { return name_; }
-
   /// Starts `job` on the worker unless one is queued, running or finished but not yet polled (then false).
   bool submit(std::function<Result()> job) {
     {
@@ -118,7 +116,6 @@ class BackgroundTask {
       error_ = error;
       last_duration_ = std::chrono::duration_cast<std::chrono::nanoseconds>(dt);
       done_.notify_all();
-      if (stop_) return;
     }
   }
 

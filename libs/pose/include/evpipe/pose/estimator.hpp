@@ -83,7 +83,6 @@ struct InitJob {
 /// What an attempt found.
 struct InitOutcome {
   std::int64_t t_us{0};
-  std::size_t events{0};
   bool ok{false};
   TrackUpdate polished;  ///< the found pose polished by the tracker on the job's events (when ok)
   std::string note;      ///< why not ok
