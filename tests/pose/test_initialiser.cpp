@@ -71,6 +71,8 @@ TEST(Initialiser, FindsThePoseFromAFarPriorWithoutCorrespondences) {
           EXPECT_LE(o.dt_m, planar ? 0.015 : 0.005);
           EXPECT_LE(o.dr_deg, planar ? 4.0 : 0.5);
           EXPECT_GE(o.r.correspondences, 4U);
+          EXPECT_GT(o.r.line_share, 0.5);  // most of the detected lines' events lie on lines the pose matches
+          EXPECT_LE(o.r.line_share, 1.0);
           EXPECT_TRUE(o.r.T_cam_model.t_cam_model_m.allFinite());
           if (o.r.ok && o.dt_m <= 0.02 && o.dr_deg <= 2.0) ++good;
           worst_t = std::max(worst_t, o.dt_m);

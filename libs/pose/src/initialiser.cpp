@@ -77,7 +77,8 @@ struct Detected {
   double angle{0};    // u.angle()
   LineObservation n;  // normalised coordinates for OPnL
   double length{0};
-  double weight{1.0};  // OPnL weight: the line's support relative to the mean (its endpoints' precision)
+  double weight{1.0};   // OPnL weight: the line's support relative to the mean (its endpoints' precision)
+  double support{0.0};  // events on the line
 };
 
 struct Visible {
@@ -300,9 +301,9 @@ class Search {
     fast.fallback = false;
     std::vector<Scored> poses;
     std::size_t best_explained = 0;
+    bool stop = false;
     for (const Alignment& a : top) {
-      // Adaptive stop: a pose already explains (nearly) all the events on the detected lines.
-      if (static_cast<double>(best_explained) >= o_.early_stop_share * line_support_) break;
+      if (stop) break;
       for (int draw = 0; draw <= o_.draws_per_alignment; ++draw) {
         std::vector<std::pair<int, int>> set;
         if (draw == o_.draws_per_alignment) {
@@ -325,7 +326,15 @@ class Search {
           consider(c.T_cam_model, set.size(), poses);
         }
         if (r.candidates.empty()) consider(r.T_cam_model, set.size(), poses);
-        for (const Scored& p : poses) best_explained = std::max(best_explained, p.explained);
+        // Adaptive stop: a new best pose explains (nearly) all the events on the detected lines, and the lines
+        // themselves: explained events alone also count events near the model that lie on no detected line,
+        // and stopping on them accepted wrong poses (docs/algorithms.md).
+        for (const Scored& p : poses) {
+          if (p.explained <= best_explained) continue;
+          best_explained = p.explained;
+          stop = static_cast<double>(p.explained) >= o_.early_stop_share * line_support_ &&
+                 line_share(p.T) >= o_.early_stop_line_share;
+        }
       }
     }
     if (poses.empty()) return std::nullopt;
@@ -386,6 +395,13 @@ class Search {
       if (best >= 0) out.emplace_back(static_cast<int>(i), best);
     }
     return out;
+  }
+
+  /// Share of the detected lines' support on lines that are inliers of T.
+  [[nodiscard]] double line_share(const camera::Pose& T) const {
+    double explained = 0.0;
+    for (const auto& [line, segment] : inliers(T)) explained += det_[static_cast<std::size_t>(line)].support;
+    return line_support_ > 0.0 ? explained / line_support_ : 0.0;
   }
 
   [[nodiscard]] bool acceptable(const camera::Pose& T) const {
@@ -576,7 +592,8 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
     d.length = d.u.length();
     d.angle = d.u.angle();
     if (!d.u.a.allFinite() || !d.u.b.allFinite() || !d.n.a_n.allFinite() || !d.n.b_n.allFinite()) continue;
-    d.weight = static_cast<double>(l.support);
+    d.support = static_cast<double>(l.support);
+    d.weight = d.support;
     det.push_back(d);
     line_support += static_cast<double>(l.support);
   }
@@ -627,6 +644,7 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
   res.explained_events = best->explained;
   res.support_share = static_cast<double>(best->explained) / static_cast<double>(events.size());
   res.correspondences = best->correspondences;
+  res.line_share = search.line_share(best->T);
   const double share = line_support > 0 ? static_cast<double>(best->explained) / line_support : 0.0;
   if (best->correspondences < options.min_lines || share < options.min_explained_share) {
     res.message = fmt::format(
@@ -637,8 +655,10 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
   }
   res.ok = true;
   res.T_cam_model = best->T;
-  res.message = fmt::format("{} lines, {} correspondences, {} events explained ({:.0f}% of the window)", lines.size(),
-                            best->correspondences, best->explained, 100.0 * res.support_share);
+  res.message = fmt::format(
+      "{} lines ({:.0f}% of their events on lines the pose matches), {} correspondences, {} "
+      "events explained ({:.0f}% of the window)",
+      lines.size(), 100.0 * res.line_share, best->correspondences, best->explained, 100.0 * res.support_share);
   return res;
 }
 

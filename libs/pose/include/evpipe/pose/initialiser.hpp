@@ -55,8 +55,12 @@ struct InitialiserOptions {
   std::size_t alignments = 32;
   /// Minimal sets (4 correspondences, >= 2 directions) drawn per alignment, plus one solve on its whole set.
   int draws_per_alignment = 4;
-  /// RANSAC stops early once a pose explains this share of the events supporting the detected lines.
+  /// RANSAC stops early once a pose explains early_stop_share of the events supporting the detected lines AND
+  /// early_stop_line_share of those lines match its projected segments (the re-association gates below). The
+  /// event count alone includes events near the model on no detected line: stopping on it alone accepted wrong
+  /// poses (docs/algorithms.md). early_stop_line_share > 1 never stops early.
   double early_stop_share = 0.8;
+  double early_stop_line_share = 0.9;
   /// Poses (best support first) re-associated and re-solved on all their inlier correspondences (those that
   /// explain at least half as many events as the best).
   std::size_t refine_candidates = 4;
@@ -85,6 +89,7 @@ struct InitResult {
   std::size_t correspondences{0};   ///< inlier 2D-3D matches of the chosen pose
   double support_share{0.0};        ///< share of the window's events explained by the chosen pose
   std::size_t explained_events{0};  ///< events within support_band_px of the chosen pose's projected model
+  double line_share{0.0};           ///< share of the detected lines' support on lines matching the chosen pose
   std::size_t hypotheses{0};        ///< OPnL solves on minimal sets
   std::size_t pseudo_priors{0};     ///< poses the search started from (1 with a prior)
 };
