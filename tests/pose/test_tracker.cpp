@@ -317,6 +317,35 @@ TEST(Tracker, LopetCompatibleSwitchGivesAResult) {
   expect_covariance_pd(lo);
 }
 
+// The round stop: from a close prediction (the tracking regime) the pose stops moving after a round or two at the
+// smallest gate; the rounds after that re-associate the same events and move it by less than the LM tolerance. The
+// update must stop there and give the pose all four rounds give (to 0.01 px of image motion ~ 0.04 mm here).
+TEST(Tracker, StopsOnceARoundNoLongerMovesThePose) {
+  const auto cam = davis();
+  for (const char* file : {"roadheader-wireframe.yaml", "target-planar.yaml"}) {
+    const auto model = model_file(file);
+    const std::uint64_t seed = 5150;
+    SCOPED_TRACE(::testing::Message() << file << ", seed " << seed);
+    const Window w = make_window(cam, model, 0.8, 1.0, seed);
+    std::mt19937_64 rng(seed + 1);
+    const camera::Pose start = sim::perturb_pose(w.truth, 0.002, 0.3, rng);  // one window's prediction error
+    pose::TrackerOptions all;
+    all.round_tolerance_px = 0.0;
+    const auto full = pose::track_window(w.events, cam, model, start, all);
+    const auto stopped = pose::track_window(w.events, cam, model, start);
+    std::cout << file << ": rounds " << full.rounds << " -> " << stopped.rounds << ", pose difference "
+              << 1000 * camera::translation_distance_m(full.T_cam_model, stopped.T_cam_model) << " mm, "
+              << camera::rotation_angle_deg(full.T_cam_model, stopped.T_cam_model) << " deg\n";
+    ASSERT_TRUE(full.healthy) << full.reason;
+    ASSERT_TRUE(stopped.healthy) << stopped.reason;
+    EXPECT_EQ(full.rounds, 4);
+    EXPECT_LT(stopped.rounds, full.rounds);
+    EXPECT_LT(camera::translation_distance_m(full.T_cam_model, stopped.T_cam_model), 0.1e-3);
+    EXPECT_LT(camera::rotation_angle_deg(full.T_cam_model, stopped.T_cam_model), 0.01);
+    EXPECT_LT(camera::translation_distance_m(stopped.T_cam_model, w.truth), 5e-3);
+  }
+}
+
 TEST(Tracker, EmptyWindowIsUnhealthyAndKeepsThePrediction) {
   const auto cam = davis();
   const auto model = model_file("target-planar.yaml");

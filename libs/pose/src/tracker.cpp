@@ -306,6 +306,19 @@ const UndistortMap& cached_map(const camera::CameraModel& camera) {
   return *map;
 }
 
+// Largest image motion (pixels) of the projected segments' ends between two poses.
+double image_motion_px(const std::vector<ProjectedSegment>& segs, const camera::Pose& T0, const camera::Pose& T1,
+                       double f) {
+  double moved2 = 0.0;
+  for (const ProjectedSegment& s : segs) {
+    for (const Eigen::Vector3d* P : {&s.a_m, &s.b_m}) {
+      const Eigen::Vector3d p0 = T0.apply(*P), p1 = T1.apply(*P);
+      moved2 = std::max(moved2, (p0.head<2>() / p0.z() - p1.head<2>() / p1.z()).squaredNorm());
+    }
+  }
+  return std::sqrt(moved2) * f;
+}
+
 // One tracking run from T_start on the window's events (and the same events gathered for the association); the
 // failures report T_predicted, as track_window promises.
 TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const UndistortMap& map,
@@ -356,13 +369,20 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
       return up;
     }
     const RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, sigma_n, o);
+    const double moved_px = image_motion_px(segs, T, rr.T, f);
     T = rr.T;
     sigma_n = rr.sigma_n;
     up.iterations += rr.iterations;
     up.converged = rr.converged;
     up.rounds = round + 1;
     up.gate_px = gate_px;
-    gate_px = std::clamp(std::min(o.gate_shrink * gate_px, o.gate_sigma_factor * sigma_n * f), o.gate_min_px, gate_px);
+    const double next_gate_px =
+        std::clamp(std::min(o.gate_shrink * gate_px, o.gate_sigma_factor * sigma_n * f), o.gate_min_px, gate_px);
+    // Converged: the next round would re-associate with the same gate around a pose that moved less than
+    // round_tolerance_px, so only events within that distance of a gate or ambiguity boundary could change — and
+    // at the gate (>= 4 sigma) their Tukey weight is already 0 or nearly so.
+    if (next_gate_px == gate_px && moved_px < o.round_tolerance_px) break;
+    gate_px = next_gate_px;
   }
 
   // Final statistics at the final pose with the last round's association and scale.

@@ -31,6 +31,10 @@ struct TrackerOptions {
   /// convergence. From a poor prediction (recovery, a 5 cm / 10 deg prior) use a wide first gate and more rounds
   /// (e.g. gate_px = 40, association_rounds = 6): the gate then halves every round (coarse to fine).
   int association_rounds = 4;
+  /// Stop before association_rounds once a round moved the projected model by less than this (pixels, largest
+  /// move of a segment end) and the gate no longer shrinks: re-associating would change nothing that matters.
+  /// 0 = always run every round.
+  double round_tolerance_px = 0.05;
   /// > 0: before the first round, search image shifts of the projected model within ±coarse_search_px (step
   /// coarse_search_step_px) for the one that puts the most events within 1.5 px of a projected line (a
   /// distance transform of the rendered model), and turn the pose about the camera centre by that shift. For
