@@ -244,8 +244,9 @@ TEST(PoseEstimator, InitialisationElsewhereStartsTheTrackOnALaterWindow) {
 // over 60 scenes per noise level, docs/algorithms.md): RANSAC stopped at the first pose that explained 80 % of the
 // events on the detected lines, a count that includes events near the model lying on no detected line. It now
 // stops only when the pose also matches the detected lines themselves (early_stop_line_share), so the search goes
-// on to the true pose. Checked to fail with early_stop_line_share = 0 (the old rule). The first accepted pose must
-// be the true one.
+// on to the true pose, and never after only a few lines of a large model (the last scene: a wrong pose matched 5
+// of its 6 detected lines). Checked to fail with early_stop_line_share = 0 (the first four) and with
+// early_stop_min_line_fraction = 0 (the last). The first accepted pose must be the true one.
 struct WrongInitCase {
   const char* model_file;
   double distance_m;
@@ -257,6 +258,7 @@ constexpr WrongInitCase kWrongInitCases[] = {
     {"roadheader-wireframe.yaml", 0.6, 20316554, 0.0},  // was 44 mm / 23 deg
     {"roadheader-wireframe.yaml", 0.8, 20316554, 0.0},  // was 63 mm / 23 deg
     {"roadheader-wireframe.yaml", 1.0, 20269040, 5.0},  // was 92 mm / 3.3 deg
+    {"roadheader-wireframe.yaml", 1.0, 20261121, 0.0},  // 6 lines, matched 5 of 6: was 142 mm / 8.6 deg
 };
 class FirstInitialisation : public ::testing::TestWithParam<int> {};
 
@@ -281,4 +283,4 @@ TEST_P(FirstInitialisation, IsTheTruePoseNotOneThatOnlyPassesNearTheEvents) {
   FAIL() << "never initialised";
 }
 
-INSTANTIATE_TEST_SUITE_P(Scenes, FirstInitialisation, ::testing::Range(0, 4));
+INSTANTIATE_TEST_SUITE_P(Scenes, FirstInitialisation, ::testing::Range(0, 5));

@@ -332,7 +332,9 @@ class Search {
         for (const Scored& p : poses) {
           if (p.explained <= best_explained) continue;
           best_explained = p.explained;
-          stop = static_cast<double>(p.explained) >= o_.early_stop_share * line_support_ &&
+          stop = static_cast<double>(det_.size()) >=
+                     o_.early_stop_min_line_fraction * static_cast<double>(model_.segments_m.size()) &&
+                 static_cast<double>(p.explained) >= o_.early_stop_share * line_support_ &&
                  line_share(p.T) >= o_.early_stop_line_share;
         }
       }

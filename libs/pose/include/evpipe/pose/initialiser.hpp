@@ -56,11 +56,14 @@ struct InitialiserOptions {
   /// Minimal sets (4 correspondences, >= 2 directions) drawn per alignment, plus one solve on its whole set.
   int draws_per_alignment = 4;
   /// RANSAC stops early once a pose explains early_stop_share of the events supporting the detected lines AND
-  /// early_stop_line_share of those lines match its projected segments (the re-association gates below). The
-  /// event count alone includes events near the model on no detected line: stopping on it alone accepted wrong
-  /// poses (docs/algorithms.md). early_stop_line_share > 1 never stops early.
+  /// early_stop_line_share of those lines match its projected segments (the re-association gates below), and
+  /// only when at least early_stop_min_line_fraction x (model segments) lines were detected. The event count
+  /// alone includes events near the model on no detected line, and a few lines of a large wireframe are matched
+  /// by wrong poses too: stopping on less accepted wrong poses (docs/algorithms.md). early_stop_line_share > 1
+  /// never stops early.
   double early_stop_share = 0.8;
   double early_stop_line_share = 0.9;
+  double early_stop_min_line_fraction = 0.3;
   /// Poses (best support first) re-associated and re-solved on all their inlier correspondences (those that
   /// explain at least half as many events as the best).
   std::size_t refine_candidates = 4;
