@@ -28,7 +28,7 @@ std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg) {
     std::optional<camera::TrajectoryCsvWriter> csv;
     if (!p.poses_out.empty()) csv.emplace(p.poses_out, pose_csv_extra_columns());
     return std::unique_ptr<PoseStage>(
-        new PoseStage(std::move(estimator), std::move(csv), p.poses_out, init_on_worker(cfg)));
+        new PoseStage(std::move(estimator), std::move(csv), p.poses_out, init_on_worker(cfg), p.init_worker_nice));
   } catch (const camera::ModelError& e) {
     throw config::ConfigError(e.what());
   } catch (const std::invalid_argument& e) {
@@ -46,13 +46,16 @@ bool init_on_worker(const config::RunConfig& cfg) {
 }
 
 PoseStage::PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv,
-                     std::string csv_path, bool init_worker)
+                     std::string csv_path, bool init_worker, int init_worker_nice)
     : estimator_(std::move(estimator)), csv_(std::move(csv)) {
   summary_.enabled = true;
   summary_.poses_out = std::move(csv_path);
   summary_.init_worker = init_worker;
-  // nice +10: an attempt uses whatever CPU the stages leave (on 2 cores it would otherwise delay them).
-  if (init_worker) init_worker_ = std::make_unique<pipeline::BackgroundTask<pose::InitOutcome>>("evpipe-init", 10);
+  // Niced (pose.init_worker_nice, default +10): an attempt uses whatever CPU the stages leave (on 2 cores it would
+  // otherwise delay them).
+  if (init_worker) {
+    init_worker_ = std::make_unique<pipeline::BackgroundTask<pose::InitOutcome>>("evpipe-init", init_worker_nice);
+  }
 }
 
 PoseStage::~PoseStage() = default;

@@ -54,7 +54,7 @@ class PoseStage {
 
  private:
   PoseStage(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv, std::string csv_path,
-            bool init_worker);
+            bool init_worker, int init_worker_nice);
   /// init_ms: set to the worker's compute time when this window applied its successful attempt.
   pose::PoseEstimate estimate(EventSpan events, std::int64_t t_us, double& init_ms);
 

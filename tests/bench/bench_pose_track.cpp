@@ -27,6 +27,7 @@ struct Setup {
   camera::LineModel model;
   std::vector<Event> events;
   camera::Pose start;
+  bool start_tracked = true;  // Start::tracked: both previous windows tracked (healthy)
 };
 
 // How the update starts: from the truth perturbed by 1 cm / 2 deg (a hard correction: the rounds do not converge
@@ -71,12 +72,13 @@ Setup make(const std::string& model_name, std::int64_t window_us, double noise_h
   }
   const pose::UndistortMap map(s.cam);
   const pose::TrackerOptions o;
-  const camera::Pose T2 =
-      pose::track_window(window(t0 - 2 * window_us), map, s.model, truth_at(t0 - 2 * window_us), o).T_cam_model;
-  const camera::Pose T1 = pose::track_window(window(t0 - window_us), map, s.model, T2, o).T_cam_model;
-  // PoseEstimator::predict with equal steps: the last relative motion applied once more.
-  const camera::Pose delta = T1 * T2.inverse();
-  s.start = delta * T1;
+  const pose::TrackUpdate u2 =
+      pose::track_window(window(t0 - 2 * window_us), map, s.model, truth_at(t0 - 2 * window_us), o);
+  const pose::TrackUpdate u1 = pose::track_window(window(t0 - window_us), map, s.model, u2.T_cam_model, o);
+  s.start_tracked = u2.healthy && u1.healthy;
+  // PoseEstimator::predict with equal steps (evpipe's default hop = the window): the last motion once more.
+  const camera::Pose delta = u1.T_cam_model * u2.T_cam_model.inverse();
+  s.start = delta * u1.T_cam_model;
   s.events = window(t0);
   return s;
 }
@@ -84,6 +86,10 @@ Setup make(const std::string& model_name, std::int64_t window_us, double noise_h
 void BM_TrackWindow(benchmark::State& state, const std::string& model_name, std::int64_t window_us, bool lopet,
                     double noise_hz = 1.0, bool denoised = false, Start start = Start::perturbed) {
   const Setup s = make(model_name, window_us, noise_hz, denoised, start);
+  if (!s.start_tracked) {
+    state.SkipWithError("the windows before the benchmarked one did not track: no prediction");
+    return;
+  }
   const pose::UndistortMap map(s.cam);
   pose::TrackerOptions o;
   o.lopet_compatible = lopet;

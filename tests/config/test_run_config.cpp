@@ -82,7 +82,7 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
   const auto c = parse_config(
       "lcm: {url: 'memq://', pose_channel: P, stats_channel: S, stats_period_ms: 200, enabled: false}\n"
       "pipeline: {source_queue_packets: 8, pose_queue_windows: 1, publish_queue: 4}\n"
-      "pose: {ground_truth: gt.csv, lost_after_windows: 5, init_worker: off}\n");
+      "pose: {ground_truth: gt.csv, lost_after_windows: 5, init_worker: off, init_worker_nice: 3}\n");
   EXPECT_EQ(c.lcm.url, "memq://");
   EXPECT_EQ(c.lcm.pose_channel, "P");
   EXPECT_EQ(c.lcm.stats_period_ms, 200);
@@ -92,6 +92,7 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
   EXPECT_EQ(c.pose.ground_truth, "gt.csv");
   EXPECT_EQ(c.pose.lost_after_windows, 5);
   EXPECT_EQ(c.pose.init_worker, "off");
+  EXPECT_EQ(c.pose.init_worker_nice, 3);
   EXPECT_EQ(parse_config(c.to_yaml()).to_yaml(), c.to_yaml());
   EXPECT_NE(error_of("lcm: {stats_period_ms: 5000}").find("lcm.stats_period_ms: must be in [10, 1000]"),
             std::string::npos);
@@ -101,5 +102,7 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
   EXPECT_NE(
       error_of("pose: {init_worker: sometimes}").find("pose.init_worker: must be auto, on or off, got 'sometimes'"),
       std::string::npos);
+  EXPECT_NE(error_of("pose: {init_worker_nice: 20}").find("pose.init_worker_nice: must be in [0, 19], got 20"),
+            std::string::npos);
   EXPECT_NE(error_of("lcm: {urll: x}").find("t.yaml: lcm.urll: unknown key"), std::string::npos);
 }

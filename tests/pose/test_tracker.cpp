@@ -319,7 +319,7 @@ TEST(Tracker, LopetCompatibleSwitchGivesAResult) {
 
 // The round stop: from a close prediction (the tracking regime) the pose stops moving after a round or two at the
 // smallest gate; the rounds after that re-associate the same events and move it by less than the LM tolerance. The
-// update must stop there and give the pose all four rounds give (to 0.01 px of image motion ~ 0.04 mm here).
+// update must stop there and give the pose all four rounds give (within 0.1 mm / 0.01 deg, ~0.04 px here).
 TEST(Tracker, StopsOnceARoundNoLongerMovesThePose) {
   const auto cam = davis();
   for (const char* file : {"roadheader-wireframe.yaml", "target-planar.yaml"}) {

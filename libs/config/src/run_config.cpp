@@ -143,7 +143,8 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
                      {"poses_out", str(c.pose.poses_out)},
                      {"ground_truth", str(c.pose.ground_truth)},
                      {"lost_after_windows", integer(c.pose.lost_after_windows)},
-                     {"init_worker", str(c.pose.init_worker)}});
+                     {"init_worker", str(c.pose.init_worker)},
+                     {"init_worker_nice", integer(c.pose.init_worker_nice)}});
     } else if (section == "lcm") {
       apply_section(node, name, section,
                     {{"enabled", boolean(c.lcm.enabled)},
@@ -207,6 +208,8 @@ void RunConfig::validate() const {
         fmt::format("must be >= 1, got {}", pose.lost_after_windows));
   check(pose.init_worker == "auto" || pose.init_worker == "on" || pose.init_worker == "off", "pose.init_worker",
         fmt::format("must be auto, on or off, got '{}'", pose.init_worker));
+  check(pose.init_worker_nice >= 0 && pose.init_worker_nice <= 19, "pose.init_worker_nice",
+        fmt::format("must be in [0, 19], got {}", pose.init_worker_nice));
   check(!lcm.pose_channel.empty(), "lcm.pose_channel", "must not be empty");
   check(!lcm.stats_channel.empty(), "lcm.stats_channel", "must not be empty");
   check(lcm.stats_period_ms >= 10 && lcm.stats_period_ms <= 1000, "lcm.stats_period_ms",
@@ -261,6 +264,7 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "ground_truth" << YAML::Value << pose.ground_truth;
   out << YAML::Key << "lost_after_windows" << YAML::Value << pose.lost_after_windows;
   out << YAML::Key << "init_worker" << YAML::Value << pose.init_worker;
+  out << YAML::Key << "init_worker_nice" << YAML::Value << pose.init_worker_nice;
   out << YAML::EndMap;
   out << YAML::Key << "lcm" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "enabled" << YAML::Value << lcm.enabled;

@@ -306,14 +306,15 @@ const UndistortMap& cached_map(const camera::CameraModel& camera) {
   return *map;
 }
 
-// Largest image motion (pixels) of the projected segments' ends between two poses.
+// Largest image motion (pixels) of the projected segments' ends between two poses (NaN or inf: not finite).
 double image_motion_px(const std::vector<ProjectedSegment>& segs, const camera::Pose& T0, const camera::Pose& T1,
                        double f) {
   double moved2 = 0.0;
   for (const ProjectedSegment& s : segs) {
     for (const Eigen::Vector3d* P : {&s.a_m, &s.b_m}) {
       const Eigen::Vector3d p0 = T0.apply(*P), p1 = T1.apply(*P);
-      moved2 = std::max(moved2, (p0.head<2>() / p0.z() - p1.head<2>() / p1.z()).squaredNorm());
+      const double d2 = (p0.head<2>() / p0.z() - p1.head<2>() / p1.z()).squaredNorm();
+      if (!(d2 <= moved2)) moved2 = d2;  // a NaN counts as a move (no early stop on it)
     }
   }
   return std::sqrt(moved2) * f;

@@ -69,6 +69,9 @@ struct PoseFilesConfig {
   /// `initialising` status for every window meanwhile), "off" on the pose thread (windows wait for the
   /// attempt: reproducible, what a lossless replay wants), "auto" = on, except for a replay at --speed max.
   std::string init_worker = "auto";
+  /// Nice increment of that worker thread (0-19): it uses what the stages leave, but under contention from other
+  /// processes a high value also slows the attempt (nice 10 gets ~10 % of a core shared with a nice-0 process).
+  int init_worker_nice = 10;
 };
 
 struct LcmConfig {

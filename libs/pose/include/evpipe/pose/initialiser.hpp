@@ -55,12 +55,13 @@ struct InitialiserOptions {
   std::size_t alignments = 32;
   /// Minimal sets (4 correspondences, >= 2 directions) drawn per alignment, plus one solve on its whole set.
   int draws_per_alignment = 4;
-  /// RANSAC stops early once a pose explains early_stop_share of the events supporting the detected lines AND
-  /// early_stop_line_share of those lines match its projected segments (the re-association gates below), and
-  /// only when at least early_stop_min_line_fraction x (model segments) lines were detected. The event count
-  /// alone includes events near the model on no detected line, and a few lines of a large wireframe are matched
-  /// by wrong poses too: stopping on less accepted wrong poses (docs/algorithms.md). early_stop_line_share > 1
-  /// never stops early.
+  /// RANSAC stops early (after the current alignment) when a new best pose (by explained events) explains
+  /// early_stop_share of the events supporting the detected lines AND early_stop_line_share of that support lies
+  /// on lines matching its projected segments (the re-association gates below), and only when at least
+  /// early_stop_min_line_fraction x (model segments, in view or not) lines were detected. The event count alone
+  /// includes events near the model on no detected line, and a few lines of a large wireframe are matched by wrong
+  /// poses too: stopping on less accepted wrong poses (docs/algorithms.md). The stop only saves time: a model
+  /// mostly out of view, or early_stop_line_share > 1, searches every alignment.
   double early_stop_share = 0.8;
   double early_stop_line_share = 0.9;
   double early_stop_min_line_fraction = 0.3;

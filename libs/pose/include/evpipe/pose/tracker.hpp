@@ -28,8 +28,9 @@ struct TrackerOptions {
   /// Rounds of (associate, S-scale, IRLS). Round 1 uses association.gate_px around the predicted pose; every
   /// later round re-associates around the pose of the previous one with gate = clamp(min(gate_shrink ×
   /// previous gate, gate_sigma_factor × sigma_S), gate_min_px, previous gate). 2 = re-associate once after
-  /// convergence. From a poor prediction (recovery, a 5 cm / 10 deg prior) use a wide first gate and more rounds
-  /// (e.g. gate_px = 40, association_rounds = 6): the gate then halves every round (coarse to fine).
+  /// convergence (unless the round stop below applies). From a poor prediction (recovery, a 5 cm / 10 deg prior) use a
+  /// wide first gate and more rounds (e.g. gate_px = 40, association_rounds = 6): the gate then halves every round
+  /// (coarse to fine).
   int association_rounds = 4;
   /// Stop before association_rounds once a round moved the projected model by less than this (pixels, largest
   /// move of a segment end) and the gate no longer shrinks: re-associating would change nothing that matters.
