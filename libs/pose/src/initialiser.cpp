@@ -10,6 +10,7 @@
 #include <numbers>
 #include <numeric>
 #include <random>
+#include <set>
 #include <utility>
 
 namespace evpipe::pose {
@@ -300,6 +301,7 @@ class Search {
     fast.refine = false;
     fast.fallback = false;
     std::vector<Scored> poses;
+    std::set<std::vector<std::pair<int, int>>> solved;
     std::size_t best_explained = 0;
     bool stop = false;
     for (const Alignment& a : top) {
@@ -317,6 +319,12 @@ class Search {
           }
         }
         if (set.size() < 4) continue;
+        // A set already solved (an alignment of 4-5 matches has few distinct minimal sets, and the whole set of 4
+        // is its only one) gives the same poses again: skip it, so that duplicates neither cost a solve nor take
+        // the refinement's candidate slots.
+        std::vector<std::pair<int, int>> key = set;
+        std::sort(key.begin(), key.end());
+        if (!solved.insert(std::move(key)).second) continue;
         ++hypotheses;
         const OpnlResult r = solve_opnl(correspondences(set), fast);
         if (!r.ok) continue;
