@@ -304,6 +304,9 @@ class Search {
     std::set<std::vector<std::pair<int, int>>> solved;
     std::size_t best_explained = 0;
     bool stop = false;
+    // Too few lines seen for the model's size: matching them is weak evidence, never stop early.
+    const bool enough_lines = static_cast<double>(det_.size()) >=
+                              o_.early_stop_min_line_fraction * static_cast<double>(model_.segments_m.size());
     for (const Alignment& a : top) {
       if (stop) break;
       for (int draw = 0; draw <= o_.draws_per_alignment; ++draw) {
@@ -340,9 +343,7 @@ class Search {
         for (const Scored& p : poses) {
           if (p.explained <= best_explained) continue;
           best_explained = p.explained;
-          stop = static_cast<double>(det_.size()) >=
-                     o_.early_stop_min_line_fraction * static_cast<double>(model_.segments_m.size()) &&
-                 static_cast<double>(p.explained) >= o_.early_stop_share * line_support_ &&
+          stop = enough_lines && static_cast<double>(p.explained) >= o_.early_stop_share * line_support_ &&
                  line_share(p.T) >= o_.early_stop_line_share;
         }
       }
