@@ -84,12 +84,15 @@ def report_build(preset: str, d: Path, min_time: float, dv: bool, out: list[str]
                 ratio = (g / fl) if g and fl else None
                 out.append(f"{ds:<9} {mode:<7} {stage:<9} {f1(g):>8} {f1(fl):>8} {f1(ratio):>7}")
                 if mode == "stream" and stage == "curv":
-                    goal_rows.append((ds, g, ratio))
+                    two = mev(curv.get(f"curvature/{ds}/grid/stream/curv/2threads/real_time"))
+                    goal_rows.append((ds, g, ratio, two))
     out.append("")
-    for ds, g, ratio in goal_rows:
+    for ds, g, ratio, two in goal_rows:
         out.append(f"goal check [{ds}]: stream + curvature {f1(g)} Mev/s (goal >= 12: "
                    f"{'met' if g and g >= 12 else 'NOT met'}); grid/flann {f1(ratio)}x (goal >= 20: "
                    f"{'met' if ratio and ratio >= 20 else 'NOT met'})")
+        out.append(f"  [{ds}] the same on 2 threads (row bands, wall clock, as evpipe's denoise.threads): {f1(two)} "
+                   f"Mev/s = {f1(two / g if two and g else None)}x one thread")
     out.append("")
     base = google_benchmark(d / "tests" / "bench" / "bench_denoise", min_time)
     out.append("baselines, Mev/s (10 000-event pushes through the Filter interface)")

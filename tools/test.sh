@@ -40,9 +40,9 @@ if [ "${EVPIPE_SKIP_TSAN:-0}" != 1 ]; then
   stamp "build (tsan preset: ThreadSanitizer, threaded tests only)"
   cmake --preset tsan >/dev/null
   cmake --build --preset tsan -j"$jobs" --target test_pipeline
-  stamp "tests (tsan preset: pipeline queues, stage loop, graph)"
+  stamp "tests (tsan preset: pipeline queues, stage loop, task pool, graph)"
   TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
-    ctest --preset tsan -j"$jobs" -R '^(PacedSource|SpscRing|NamedQueue|Histogram|StageRunner|PipelineGraph|BackgroundTask)\.'
+    ctest --preset tsan -j"$jobs" -R '^(PacedSource|SpscRing|NamedQueue|Histogram|StageRunner|PipelineGraph|BackgroundTask|TaskPool)\.'
 fi
 
 if [ "${EVPIPE_SKIP_FUZZ:-0}" != 1 ]; then

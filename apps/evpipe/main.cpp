@@ -234,6 +234,10 @@ int run(const Cli& cli) {
   po.window_queue_capacity = static_cast<std::size_t>(cfg.pipeline.pose_queue_windows);
   po.pose_queue_capacity = static_cast<std::size_t>(cfg.pipeline.publish_queue);
   po.stats_period = std::chrono::milliseconds(cfg.lcm.stats_period_ms);
+  po.denoise_threads = cfg.denoise.threads > 0
+                           ? cfg.denoise.threads
+                           : std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 4);
+  spdlog::debug("denoise: {} thread(s)", po.denoise_threads);
   app::PoseProcessor processor(pose_stage.get());
   app::AppSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
   pipeline::Pipeline pipe(std::move(source), std::move(filter), processor, sink, po);

@@ -17,6 +17,7 @@
 
 #include "evpipe/denoise/curvature.hpp"
 #include "evpipe/io/reader.hpp"
+#include "evpipe/pipeline/task_pool.hpp"
 #include "evpipe/sim/noise.hpp"
 #include "evpipe/sim/recording.hpp"
 #include "rotating_bars.hpp"
@@ -53,7 +54,7 @@ const std::vector<Event>& synth10_events() {
 }
 
 void BM_Curvature(benchmark::State& state, const std::vector<Event>& (*data)(), NeighbourhoodBackend backend,
-                  CurvatureMode mode, bool curvature) {
+                  CurvatureMode mode, bool curvature, int threads) {
   const std::vector<Event>& ev = data();
   if (ev.empty()) {
     state.SkipWithError("recording not available (set EVPIPE_BENCH_DEMO)");
@@ -67,8 +68,11 @@ void BM_Curvature(benchmark::State& state, const std::vector<Event>& (*data)(), 
   Decisions d;
   d.keep.reserve(ev.size());
   d.score.reserve(ev.size());
+  // threads > 1: each block's row bands on a pool (as evpipe's denoise stage runs it; wall-clock rate).
+  pipeline::TaskPool pool(threads - 1, "bench-");
   for (auto _ : state) {
     CurvatureFilter f(o, kDavis346);
+    if (threads > 1) f.set_parallelism(threads, pool.runner());
     d.clear();
     constexpr std::size_t kPush = 8192;
     for (std::size_t i = 0; i < ev.size(); i += kPush) {
@@ -97,9 +101,15 @@ void register_all() {
           const std::string name = std::string("curvature/") + data.name + "/" +
                                    (backend == NeighbourhoodBackend::grid ? "grid" : "flann") + "/" +
                                    std::string(to_string(mode)) + (curvature ? "/curv" : "/density");
-          auto* b = benchmark::RegisterBenchmark(name.c_str(), BM_Curvature, data.get, backend, mode, curvature);
+          auto* b = benchmark::RegisterBenchmark(name.c_str(), BM_Curvature, data.get, backend, mode, curvature, 1);
           b->Unit(benchmark::kMillisecond);
           if (backend == NeighbourhoodBackend::flann) b->Iterations(1);
+          if (backend == NeighbourhoodBackend::grid && mode == CurvatureMode::stream && curvature) {
+            benchmark::RegisterBenchmark((name + "/2threads").c_str(), BM_Curvature, data.get, backend, mode, curvature,
+                                         2)
+                ->Unit(benchmark::kMillisecond)
+                ->UseRealTime();
+          }
         }
       }
     }

@@ -106,3 +106,16 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
             std::string::npos);
   EXPECT_NE(error_of("lcm: {urll: x}").find("t.yaml: lcm.urll: unknown key"), std::string::npos);
 }
+
+TEST(RunConfig, DenoiseThreads) {
+  EXPECT_EQ(parse_config("denoise: {filter: curvature}\n").denoise.threads, 0);  // auto
+  EXPECT_EQ(parse_config("denoise: {threads: auto}\n").denoise.threads, 0);
+  const auto c = parse_config("denoise: {threads: 3}\n");
+  EXPECT_EQ(c.denoise.threads, 3);
+  EXPECT_EQ(parse_config(c.to_yaml()).denoise.threads, 3);
+  EXPECT_EQ(parse_config(parse_config("{}\n").to_yaml()).denoise.threads, 0);
+  EXPECT_NE(error_of("denoise: {threads: 0}").find("denoise.threads: must be 'auto' or in [1, 64], got 0"),
+            std::string::npos);
+  EXPECT_NE(error_of("denoise: {threads: many}").find("denoise.threads: expected a number or 'auto', got 'many'"),
+            std::string::npos);
+}

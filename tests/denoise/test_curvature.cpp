@@ -10,6 +10,7 @@
 #include <numeric>
 #include <random>
 #include <stdexcept>
+#include <thread>
 
 #include "evpipe/denoise/curvature.hpp"
 #include "evpipe/denoise/registry.hpp"
@@ -36,13 +37,15 @@ double report_value(const std::vector<ReportItem>& items, std::string_view key) 
   return -1;
 }
 
-/// Runs a filter over `ev` cut into pushes by `cuts` (positions where a new push starts; empty = one push).
+/// Runs a filter over `ev` cut into pushes by `cuts` (positions where a new push starts; empty = one push),
+/// optionally split into `tasks` run by `runner`.
 Outcome run(const CurvatureOptions& o, const std::vector<Event>& ev, const std::vector<std::size_t>& cuts = {},
-            bool with_sites = false) {
+            bool with_sites = false, int tasks = 1, const TaskRunner& runner = {}) {
   Outcome r;
   r.trace.with_sites = with_sites;
   CurvatureFilter f(o, kDavis346);
   f.set_trace(&r.trace);
+  f.set_parallelism(tasks, runner);
   std::size_t start = 0;
   for (const std::size_t c : cuts) {
     f.push(EventSpan(ev).subspan(start, c - start), r.d);
@@ -390,6 +393,112 @@ TEST(Curvature, GridFlannAndBatchAgreeOnRandomStreams) {
         EXPECT_GT(report_value(grid.report, "density_passed"), 100) << what;
       }
     }
+  }
+}
+
+// The runners a caller may pass: tasks in reverse order on this thread (any order must do), and one thread per
+// task (what the pipeline does, with a pool).
+void reversed_runner(int n, const std::function<void(int)>& task) {
+  for (int k = n - 1; k >= 0; --k) task(k);
+}
+void thread_runner(int n, const std::function<void(int)>& task) {
+  std::vector<std::thread> threads;
+  for (int k = 1; k < n; ++k) threads.emplace_back(task, k);
+  task(0);
+  for (auto& t : threads) t.join();
+}
+
+void expect_same_counters(const Outcome& a, const Outcome& b, const std::string& what) {
+  for (const char* key : {"density_passed", "curvature_undefined", "curvature_dropped", "blocks"}) {
+    EXPECT_EQ(report_value(a.report, key), report_value(b.report, key)) << what << ": " << key;
+  }
+}
+
+TEST(Curvature, RowBandTasksGiveTheSameDecisions) {
+  // The random streams put events in rows 0-7 and 252-259 only: 3 and 5 bands cut inside them, so balls reach
+  // across band borders.
+  for (const std::uint64_t seed : {1ULL, 2ULL, 3ULL}) {
+    const auto ev = random_stream(seed, 3000, 300'000);
+    std::mt19937_64 rng(seed * 31);
+    for (const auto mode : {CurvatureMode::stream, CurvatureMode::frames}) {
+      CurvatureOptions o;
+      o.mode = mode;
+      o.window_us = seed == 3 ? 10'000 : 30'000;
+      const Outcome one = run(o, ev, {}, true);
+      for (const int tasks : {2, 3, 5}) {
+        const std::string what =
+            "seed " + std::to_string(seed) + " " + std::string(to_string(mode)) + " tasks " + std::to_string(tasks);
+        int calls = 0;  // the split really happens: the runner gets the tasks
+        const TaskRunner counting = [&](int n, const std::function<void(int)>& task) {
+          EXPECT_EQ(n, tasks);
+          ++calls;
+          reversed_runner(n, task);
+        };
+        const Outcome rev = run(o, ev, random_cuts(ev.size(), rng, 700), true, tasks, counting);
+        EXPECT_GT(calls, 5) << what;
+        expect_same(rev, one, what + " reversed");
+        expect_same_counters(rev, one, what + " reversed");
+        const Outcome thr = run(o, ev, random_cuts(ev.size(), rng, 700), true, tasks, thread_runner);
+        expect_same(thr, one, what + " threads");
+        expect_same_counters(thr, one, what + " threads");
+      }
+    }
+  }
+}
+
+TEST(Curvature, ParallelismReachesTheCurvatureStageOfAChainOnly) {
+  const auto ev = random_stream(9, 3000, 300'000);
+  int calls = 0;
+  const TaskRunner counting = [&](int n, const std::function<void(int)>& task) {
+    ++calls;
+    reversed_runner(n, task);
+  };
+  Decisions d;
+  auto chain = make_filter_chain("hotpixel,curvature", {}, kDavis346);
+  chain->set_parallelism(2, counting);
+  chain->push(ev, d);
+  chain->finish(d);
+  EXPECT_GT(calls, 5);
+  // Causal mode and the FLANN backend stay in one task.
+  for (const auto& [mode, backend] : {std::pair{CurvatureMode::causal, NeighbourhoodBackend::grid},
+                                      std::pair{CurvatureMode::stream, NeighbourhoodBackend::flann}}) {
+    CurvatureOptions o;
+    o.mode = mode;
+    o.backend = backend;
+    calls = 0;
+    const Outcome two = run(o, ev, {}, false, 2, counting);
+    EXPECT_EQ(calls, 0);
+    ASSERT_EQ(two.d.keep, run(o, ev).d.keep);
+  }
+}
+
+TEST(Curvature, RowBandTasksOnRealRecordingsAndWithTheAdaptiveThreshold) {
+  CurvatureOptions o;
+  {
+    // Adaptive: every period's failures are counted before the next period's threshold, whatever the tasks.
+    std::mt19937_64 rng(4243);
+    sim::NoiseOptions no;
+    no.rate_hz_per_pixel = 5.0;
+    const auto ev = sim::background_activity(kDavis346, 0, 3'000'000, no, rng);
+    CurvatureOptions a = o;
+    a.adaptive = true;
+    a.adaptive_period_us = 700'000;
+    const Outcome one = run(a, ev, time_cuts(ev, 20'000));
+    const Outcome two = run(a, ev, time_cuts(ev, 20'000), false, 2, thread_runner);
+    expect_same(two, one, "adaptive, 2 tasks");
+    expect_same_counters(two, one, "adaptive, 2 tasks");
+    EXPECT_EQ(report_value(two.report, "noise_rate_hz"), report_value(one.report, "noise_rate_hz"));
+    EXPECT_EQ(report_value(two.report, "adaptive_periods"), 4);  // 3 s in periods of 0.7 s
+  }
+  for (const std::string rel : {"emlb-demo-01/demo-01.aedat4", "davis346-faery/davis346.aedat4"}) {
+    EVPIPE_REQUIRE_REAL(path, rel);
+    const EventBatch b = io::read_all(path);
+    const std::vector<Event>& ev = b.events;
+    const Outcome one = run(o, ev, time_cuts(ev, 30'000));
+    const Outcome two = run(o, ev, time_cuts(ev, 5'000), false, 2, thread_runner);
+    ASSERT_EQ(two.d.keep, one.d.keep) << rel;
+    ASSERT_EQ(two.d.score, one.d.score) << rel;
+    expect_same_counters(two, one, rel);
   }
 }
 

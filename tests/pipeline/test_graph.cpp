@@ -253,6 +253,10 @@ TEST(PipelineGraph, ReplayWithTheCurvatureFilterEqualsTheSequentialWindows) {
   o.window_us = 10'000;
   o.hop_us = 5'000;
   replay_equals_sequential(path, "curvature", o);
+  // Each block spread over the stage's thread and pool workers (row bands): the same windows.
+  o.denoise_threads = 3;
+  replay_equals_sequential(path, "curvature", o);
+  replay_equals_sequential(path, "hotpixel,curvature", o);
 }
 
 TEST(PipelineGraph, ClockSegmentsAreWindowedAsSequentially) {

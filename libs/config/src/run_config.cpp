@@ -124,17 +124,26 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
       apply_section(node, name, section, {{"length_us", i64(c.window.length_us)}, {"hop_us", i64(c.window.hop_us)}});
     } else if (section == "denoise") {
       apply_section(node, name, section,
-                    {{"filter", str(c.denoise.filter)}, {"params", [&](const YAML::Node& n, const std::string& k) {
-                                                           if (n.IsNull()) return;
-                                                           if (!n.IsMap())
-                                                             fail(name, k, "expected a map of KEY: value");
-                                                           for (const auto& p : n) {
-                                                             const auto key = p.first.as<std::string>();
-                                                             c.denoise.params.emplace_back(
-                                                                 key, scalar<std::string>(p.second, name, k + "." + key,
-                                                                                          "a value"));
-                                                           }
-                                                         }}});
+                    {{"filter", str(c.denoise.filter)},
+                     {"threads",
+                      [&](const YAML::Node& n, const std::string& k) {
+                        if (scalar<std::string>(n, name, k, "a number or 'auto'") == "auto") {
+                          c.denoise.threads = 0;
+                          return;
+                        }
+                        c.denoise.threads = scalar<int>(n, name, k, "a number or 'auto'");
+                        if (c.denoise.threads < 1 || c.denoise.threads > 64)
+                          fail(name, k, fmt::format("must be 'auto' or in [1, 64], got {}", c.denoise.threads));
+                      }},
+                     {"params", [&](const YAML::Node& n, const std::string& k) {
+                        if (n.IsNull()) return;
+                        if (!n.IsMap()) fail(name, k, "expected a map of KEY: value");
+                        for (const auto& p : n) {
+                          const auto key = p.first.as<std::string>();
+                          c.denoise.params.emplace_back(key,
+                                                        scalar<std::string>(p.second, name, k + "." + key, "a value"));
+                        }
+                      }}});
     } else if (section == "pose") {
       apply_section(node, name, section,
                     {{"camera", str(c.pose.camera)},
@@ -204,6 +213,8 @@ void RunConfig::validate() const {
   check(window.hop_us > 0 && window.hop_us <= window.length_us, "window.hop_us",
         fmt::format("must be in [1, window.length_us = {}], got {}", window.length_us, window.hop_us));
   check(!denoise.filter.empty(), "denoise.filter", "must name a filter or chain, or be 'none'");
+  check(denoise.threads >= 0 && denoise.threads <= 64, "denoise.threads",
+        fmt::format("must be 'auto' or in [1, 64], got {}", denoise.threads));
   check(pose.lost_after_windows >= 1, "pose.lost_after_windows",
         fmt::format("must be >= 1, got {}", pose.lost_after_windows));
   check(pose.init_worker == "auto" || pose.init_worker == "on" || pose.init_worker == "off", "pose.init_worker",
@@ -255,7 +266,9 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "filter" << YAML::Value << denoise.filter;
   out << YAML::Key << "params" << YAML::Value << YAML::BeginMap;
   for (const auto& [key, value] : denoise.params) out << YAML::Key << key << YAML::Value << value;
-  out << YAML::EndMap << YAML::EndMap;
+  out << YAML::EndMap;
+  out << YAML::Key << "threads" << YAML::Value << (denoise.threads == 0 ? "auto" : std::to_string(denoise.threads));
+  out << YAML::EndMap;
   out << YAML::Key << "pose" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "camera" << YAML::Value << pose.camera;
   out << YAML::Key << "model" << YAML::Value << pose.model;

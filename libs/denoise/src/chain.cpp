@@ -117,6 +117,10 @@ void FilterChain::reset() {
   }
 }
 
+void FilterChain::set_parallelism(int tasks, TaskRunner runner) {
+  for (auto& s : stages_) s->set_parallelism(tasks, runner);
+}
+
 std::vector<ReportItem> FilterChain::report() const {
   std::vector<ReportItem> all;
   for (const auto& s : stages_) {

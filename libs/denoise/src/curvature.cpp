@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 
@@ -86,21 +87,35 @@ namespace {
 // quadric fits, per-block selection and the decisions. Shared by every backend and mode and by
 // curvature_batch, so that equal per-site statistics give equal decisions whatever order queries arrive in
 // (only the period of the adaptive estimator needs time order, and queries never straddle a period).
+//
+// The fits of one block may run as several tasks at once (CurvatureFilter::set_parallelism): each task has its own
+// Fitter and writes only the slots of its own events; the counters are summed and the selection runs once the
+// tasks have returned.
 class Judge {
  public:
-  Judge(const CurvatureOptions& o, const Sphere& sphere, const SensorGeometry& g)
+  /// One task's fitting state (lanes of pending fits, its own lazily filled rank table, counters).
+  struct Fitter {
+    explicit Fitter(const Sphere& sphere) : table(sphere), batch(sphere) {}
+    SingularMaskTable table;
+    QuadricBatch batch;
+    int lanes = 0;
+    std::size_t lane_slot[QuadricBatch::kLanes] = {};
+    std::int64_t density_passed = 0, undefined = 0, failed = 0;
+  };
+
+  Judge(const CurvatureOptions& o, const Sphere& sphere, const SensorGeometry& g, int tasks = 1)
       : o_(o),
         sites_(sphere.size()),
-        table_(sphere),
-        batch_(sphere),
-        rate_(o.adaptive ? make_exposure_model(sphere, o.mode, o.window_us, g) : ExposureModel{}, o) {}
+        rate_(o.adaptive ? make_exposure_model(sphere, o.mode, o.window_us, g) : ExposureModel{}, o) {
+    for (int k = 0; k < std::max(tasks, 1); ++k) fitters_.emplace_back(sphere);
+  }
 
   void reset() {
     rate_.reset();
     prev_region_ = {};
     have_prev_ = false;
-    lanes_ = 0;
-    density_passed_ = undefined_ = dropped_ = blocks_ = 0;
+    for (auto& f : fitters_) f.lanes = 0, f.density_passed = f.undefined = f.failed = 0;
+    dropped_ = blocks_ = 0;
     started_ = false;
   }
   void set_trace(CurvatureTrace* t) noexcept { trace_ = t; }
@@ -136,48 +151,85 @@ class Judge {
   }
   [[nodiscard]] std::size_t slots() const noexcept { return rho_.size(); }
 
+  /// The density threshold in force at t_us (advances the adaptive period; one thread, between tasks).
+  std::int64_t threshold(std::int64_t t_us) { return rate_.threshold(t_us); }
+  /// The density failures counted by the tasks go to the adaptive estimator (before its next period starts).
+  void absorb_failures() {
+    for (auto& f : fitters_) {
+      rate_.count_failures(f.failed);
+      f.failed = 0;
+    }
+  }
+  [[nodiscard]] int tasks() const noexcept { return static_cast<int>(fitters_.size()); }
+  /// Between blocks: `n` Fitters from now on (the counters of removed ones are kept).
+  void set_tasks(int n, const Sphere& sphere) {
+    flush();
+    absorb_failures();
+    while (static_cast<int>(fitters_.size()) > std::max(n, 1)) {
+      fitters_.front().density_passed += fitters_.back().density_passed;
+      fitters_.front().undefined += fitters_.back().undefined;
+      fitters_.pop_back();
+    }
+    while (static_cast<int>(fitters_.size()) < n) fitters_.emplace_back(sphere);
+  }
+
+  /// One event in the caller's thread.
   void add(std::size_t slot, std::int64_t t_us, std::int32_t rho, std::uint64_t mask, const std::int32_t* counts,
            const double* sums) {
+    add(0, slot, threshold(t_us), rho, mask, counts, sums);
+    absorb_failures();
+  }
+
+  /// One event of task `task` against `threshold`: touches only its slot and that task's Fitter.
+  void add(int task, std::size_t slot, std::int64_t threshold, std::int32_t rho, std::uint64_t mask,
+           const std::int32_t* counts, const double* sums) {
+    Fitter& f = fitters_[static_cast<std::size_t>(task)];
     rho_[slot] = rho;
     if (trace_ != nullptr && trace_->with_sites) {
       std::copy_n(counts, sites_, site_counts_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
       for (int s = 0; s < sites_; ++s) site_sums_[slot * sites_ + s] = static_cast<std::int64_t>(sums[s]);
     }
-    if (rho < rate_.threshold(t_us)) {
+    if (rho < threshold) {
       status_[slot] = CurvatureStatus::density_fail;
-      rate_.count_failure();
+      ++f.failed;
       return;
     }
-    ++density_passed_;
+    ++f.density_passed;
     if (!o_.curvature) {
       status_[slot] = CurvatureStatus::density_only;
       return;
     }
-    if (!table_.full_rank(mask)) {
+    if (!f.table.full_rank(mask)) {
       status_[slot] = CurvatureStatus::undefined;
-      ++undefined_;
+      ++f.undefined;
       return;
     }
     status_[slot] = CurvatureStatus::selected;  // fitted; the selection may still drop it
-    batch_.set(lanes_, counts, sums);
-    lane_slot_[lanes_++] = slot;
-    if (lanes_ == QuadricBatch::kLanes) flush();
+    f.batch.set(f.lanes, counts, sums);
+    f.lane_slot[f.lanes++] = slot;
+    if (f.lanes == QuadricBatch::kLanes) flush(f);
   }
 
+  /// Solves what task `task` has pending (its thread).
+  void flush(int task) { flush(fitters_[static_cast<std::size_t>(task)]); }
   void flush() {
-    if (lanes_ == 0) return;
+    for (auto& f : fitters_) flush(f);
+  }
+
+  void flush(Fitter& f) {
+    if (f.lanes == 0) return;
     double c[QuadricBatch::kLanes];
     bool ok[QuadricBatch::kLanes];
-    batch_.solve(lanes_, c, ok);
-    for (int l = 0; l < lanes_; ++l) {
+    f.batch.solve(f.lanes, c, ok);
+    for (int l = 0; l < f.lanes; ++l) {
       if (ok[l]) {
-        curv_[lane_slot_[l]] = c[l];
+        curv_[f.lane_slot[l]] = c[l];
       } else {
-        status_[lane_slot_[l]] = CurvatureStatus::undefined;
-        ++undefined_;
+        status_[f.lane_slot[l]] = CurvatureStatus::undefined;
+        ++f.undefined;
       }
     }
-    lanes_ = 0;
+    f.lanes = 0;
   }
 
   /// frames/stream: selection over the block's population, then every slot's decision.
@@ -208,8 +260,10 @@ class Judge {
   }
 
   void report(std::vector<ReportItem>& items) const {
-    items.push_back({"density_passed", static_cast<double>(density_passed_)});
-    items.push_back({"curvature_undefined", static_cast<double>(undefined_)});
+    std::int64_t passed = 0, undefined = 0;
+    for (const auto& f : fitters_) passed += f.density_passed, undefined += f.undefined;
+    items.push_back({"density_passed", static_cast<double>(passed)});
+    items.push_back({"curvature_undefined", static_cast<double>(undefined)});
     items.push_back({"curvature_dropped", static_cast<double>(dropped_)});
     items.push_back({"blocks", static_cast<double>(blocks_)});
     items.push_back({"noise_rate_hz", rate_.rate_hz()});
@@ -280,8 +334,7 @@ class Judge {
 
   CurvatureOptions o_;
   int sites_;
-  SingularMaskTable table_;
-  QuadricBatch batch_;
+  std::vector<Fitter> fitters_;
   NoiseRateEstimator rate_;
   CurvatureTrace* trace_ = nullptr;
   bool started_ = false;
@@ -292,8 +345,6 @@ class Judge {
   std::vector<double> curv_;
   std::vector<std::int32_t> site_counts_;
   std::vector<std::int64_t> site_sums_;
-  int lanes_ = 0;
-  std::size_t lane_slot_[QuadricBatch::kLanes] = {};
 
   std::vector<double> values_;
   std::vector<std::uint32_t> which_;
@@ -302,7 +353,7 @@ class Judge {
   std::int64_t prev_block_ = 0;
   bool have_prev_ = false;
 
-  std::int64_t density_passed_ = 0, undefined_ = 0, dropped_ = 0, blocks_ = 0;
+  std::int64_t dropped_ = 0, blocks_ = 0;
 };
 
 std::int64_t sat_add(std::int64_t a, std::int64_t b) noexcept {
@@ -327,7 +378,49 @@ struct CurvatureFilter::Impl {
     } else if (options.mode == CurvatureMode::causal) {
       ring = std::make_unique<GridRingIndex>(sphere, geometry);
     } else {
-      grid = std::make_unique<GridBlockIndex>(sphere, geometry);
+      grids.push_back(std::make_unique<GridBlockIndex>(sphere, geometry));
+    }
+  }
+
+  /// Grid index, frames / stream: one row band per task, each with its own index (the other modes and backends
+  /// work one event after another or are the reference: they stay in one task).
+  void set_parallelism(int tasks, TaskRunner r) {
+    if (grids.empty()) return;
+    const int n = r ? std::clamp(tasks, 1, kMaxTasks) : 1;
+    runner = std::move(r);
+    judge.set_tasks(n, sphere);
+    grids.resize(static_cast<std::size_t>(n));
+    for (auto& g : grids) {
+      if (!g) g = std::make_unique<GridBlockIndex>(sphere, geometry);
+    }
+  }
+
+  void run_tasks(int n, const std::function<void(int)>& task) const {
+    if (n > 1 && runner) {
+      runner(n, task);
+    } else {
+      for (int k = 0; k < n; ++k) task(k);
+    }
+  }
+
+  /// Row bands [band[k], band[k + 1]) holding about equal shares of the queries [q0, q1) of `span`.
+  void split_rows(EventSpan span, std::size_t q0, std::size_t q1) {
+    const auto n = static_cast<int>(grids.size());
+    band.assign(static_cast<std::size_t>(n) + 1, geometry.height);
+    band[0] = 0;
+    if (n == 1) return;
+    row_count.assign(static_cast<std::size_t>(geometry.height), 0);
+    std::size_t total = 0;
+    for (std::size_t i = q0; i < q1; ++i) {
+      if (!geometry.contains(span[i].x, span[i].y)) continue;
+      ++row_count[static_cast<std::size_t>(span[i].y)];
+      ++total;
+    }
+    std::size_t seen = 0;
+    int k = 1;
+    for (int y = 0; y < geometry.height && k < n; ++y) {
+      seen += row_count[static_cast<std::size_t>(y)];
+      while (k < n && seen * static_cast<std::size_t>(n) >= total * static_cast<std::size_t>(k)) band[k++] = y + 1;
     }
   }
 
@@ -335,7 +428,11 @@ struct CurvatureFilter::Impl {
   SensorGeometry geometry;
   Sphere sphere;
   Judge judge;
-  std::unique_ptr<GridBlockIndex> grid;
+  static constexpr int kMaxTasks = 64;
+  std::vector<std::unique_ptr<GridBlockIndex>> grids;  // one per task (row band); empty for causal / flann
+  TaskRunner runner;
+  std::vector<int> band;
+  std::vector<std::uint32_t> row_count;
   std::unique_ptr<GridRingIndex> ring;
   std::unique_ptr<FlannBallIndex> flann;
 
@@ -401,28 +498,52 @@ struct CurvatureFilter::Impl {
     judge.begin_block(k, b1 - b0);
     const std::size_t q0 = b0 - e0;
     const std::size_t q1 = b1 - e0;
-    if (grid) {
-      grid->build(span);
+    if (!grids.empty()) {
       const std::int64_t lo = stream ? std::numeric_limits<std::int64_t>::min() / 2 : blk_start;
       const std::int64_t hi = stream ? std::numeric_limits<std::int64_t>::max() / 2 : blk_end - 1;
-      auto sink = [&](std::size_t i, std::int64_t t_us, std::int32_t rho, std::uint64_t mask, const std::int32_t* c,
-                      const double* s) { judge.add(i - q0, t_us, rho, mask, c, s); };
-      // Queries arrive grouped by pixel: split them at the adaptive estimator's period borders so that all
-      // events of one period are judged before any of the next.
-      std::size_t a = q0;
-      while (a < q1) {
-        std::size_t b = q1;
-        if (options.adaptive) {
+      const int n = static_cast<int>(grids.size());
+      split_rows(span, q0, q1);
+      const auto build = [&](int task) {
+        grids[static_cast<std::size_t>(task)]->build(span, band[static_cast<std::size_t>(task)],
+                                                     band[static_cast<std::size_t>(task) + 1]);
+      };
+      const auto query = [&](int task, std::size_t a, std::size_t b, std::int64_t threshold) {
+        auto sink = [&](std::size_t i, std::int64_t, std::int32_t rho, std::uint64_t mask, const std::int32_t* c,
+                        const double* s) { judge.add(task, i - q0, threshold, rho, mask, c, s); };
+        grids[static_cast<std::size_t>(task)]->query(a, b, lo, hi, sink);
+        judge.flush(task);
+      };
+      if (!options.adaptive) {
+        const std::int64_t threshold = judge.threshold(span[q0].t_us);  // fixed
+        run_tasks(n, [&](int task) {
+          build(task);
+          query(task, q0, q1, threshold);
+        });
+      } else {
+        // Queries arrive grouped by pixel: split them at the adaptive estimator's period borders so that all
+        // events of one period are judged (and their failures counted) before the next period's threshold.
+        run_tasks(n, build);
+        std::size_t a = q0;
+        while (a < q1) {
           const std::int64_t period_end =
               (floor_div(span[a].t_us, options.adaptive_period_us) + 1) * options.adaptive_period_us;
-          b = static_cast<std::size_t>(std::lower_bound(span.begin() + static_cast<std::ptrdiff_t>(a),
-                                                        span.begin() + static_cast<std::ptrdiff_t>(q1), period_end,
-                                                        by_time) -
-                                       span.begin());
+          const auto b = static_cast<std::size_t>(std::lower_bound(span.begin() + static_cast<std::ptrdiff_t>(a),
+                                                                   span.begin() + static_cast<std::ptrdiff_t>(q1),
+                                                                   period_end, by_time) -
+                                                  span.begin());
+          // The period starts at its first queried event (as if each event asked in turn): a period with none
+          // does not count as observed.
+          std::size_t first = a;
+          while (first < b && !geometry.contains(span[first].x, span[first].y)) ++first;
+          if (first < b) {
+            const std::int64_t threshold = judge.threshold(span[first].t_us);
+            run_tasks(n, [&](int task) { query(task, a, b, threshold); });
+            judge.absorb_failures();
+          }
+          a = b;
         }
-        grid->query(a, b, lo, hi, sink);
-        a = b;
       }
+      judge.absorb_failures();
     } else {
       flann->build(span, geometry);
       for (std::size_t i = q0; i < q1; ++i) {
@@ -518,6 +639,10 @@ struct CurvatureFilter::Impl {
 CurvatureFilter::CurvatureFilter(const CurvatureOptions& options, const SensorGeometry& geometry)
     : impl_(std::make_unique<Impl>(options, geometry)) {}
 CurvatureFilter::~CurvatureFilter() = default;
+
+void CurvatureFilter::set_parallelism(int tasks, TaskRunner runner) {
+  impl_->set_parallelism(tasks, std::move(runner));
+}
 
 void CurvatureFilter::push(EventSpan events, Decisions& out) {
   if (impl_->options.mode == CurvatureMode::causal) {

@@ -25,9 +25,13 @@ GridBlockIndex::GridBlockIndex(const Sphere& sphere, const SensorGeometry& geome
   touched_bits_.assign((pixels + 63) / 64, 0);
 }
 
-void GridBlockIndex::build(EventSpan events) {
+void GridBlockIndex::build(EventSpan events, int query_y_lo, int query_y_hi) {
   events_ = events;
   base_us_ = events.empty() ? 0 : events.front().t_us;
+  query_y_lo_ = std::clamp(query_y_lo, 0, geometry_.height);
+  query_y_hi_ = std::clamp(query_y_hi, query_y_lo_, geometry_.height);
+  index_y_lo_ = query_y_lo_ - extent_;
+  index_y_hi_ = query_y_hi_ + extent_;
   for (const std::uint32_t p : touched_) {
     begin_[p] = 0;
     count_[p] = 0;
@@ -35,7 +39,7 @@ void GridBlockIndex::build(EventSpan events) {
   touched_.clear();
   std::size_t n = 0;
   for (const Event& e : events) {
-    if (!geometry_.contains(e.x, e.y)) continue;
+    if (!indexed(e)) continue;
     const std::size_t p = pixel_of(e);
     touched_bits_[p >> 6] |= std::uint64_t{1} << (p & 63);
     ++count_[p];
@@ -61,7 +65,7 @@ void GridBlockIndex::build(EventSpan events) {
   prefix_.resize(total + 1);
   for (std::size_t i = 0; i < events.size(); ++i) {
     const Event& e = events[i];
-    if (!geometry_.contains(e.x, e.y)) continue;
+    if (!indexed(e)) continue;
     const std::uint32_t k = cursor_[pixel_of(e)]++;
     time_[k] = static_cast<std::int32_t>(e.t_us - base_us_);
     index_[k] = static_cast<std::uint32_t>(i);
@@ -77,6 +81,11 @@ void GridBlockIndex::build(EventSpan events) {
   prefix_[0] = 0;
   for (std::size_t k = 0; k < total; ++k) prefix_[k + 1] = prefix_[k] + time_[k];
   (void)n;
+  const auto row_start = [&](int y) { return static_cast<std::uint32_t>((y + extent_) * stride_); };
+  touched_lo_ = static_cast<std::size_t>(std::lower_bound(touched_.begin(), touched_.end(), row_start(query_y_lo_)) -
+                                         touched_.begin());
+  touched_hi_ = static_cast<std::size_t>(std::lower_bound(touched_.begin(), touched_.end(), row_start(query_y_hi_)) -
+                                         touched_.begin());
 }
 
 void GridBlockIndex::find_ties(std::size_t first, std::size_t last) {
@@ -99,7 +108,7 @@ void GridBlockIndex::find_ties(std::size_t first, std::size_t last) {
         run_id_ = 1;
       }
       for (std::size_t i = r0; i < r1; ++i) {
-        if (!geometry_.contains(events_[i].x, events_[i].y)) continue;
+        if (!indexed(events_[i])) continue;
         const std::size_t p = pixel_of(events_[i]);
         if (stamp_[p] != run_id_) {
           stamp_[p] = run_id_;
@@ -108,7 +117,7 @@ void GridBlockIndex::find_ties(std::size_t first, std::size_t last) {
         ++stamp_count_[p];
       }
       for (std::size_t i = r0; i < r1; ++i) {
-        if (!geometry_.contains(events_[i].x, events_[i].y)) continue;
+        if (!indexed(events_[i]) || !queried(events_[i])) continue;
         const auto p = static_cast<std::ptrdiff_t>(pixel_of(events_[i]));
         for (const int s : tie_sites_) {
           const auto q = static_cast<std::size_t>(p + offset_[s]);

@@ -10,6 +10,7 @@
 #include "evpipe/denoise/filtered_stream.hpp"
 #include "evpipe/device/davis_source.hpp"
 #include "evpipe/pipeline/paced_source.hpp"
+#include "evpipe/pipeline/task_pool.hpp"
 
 namespace evpipe::pipeline {
 
@@ -233,6 +234,10 @@ struct Pipeline::Impl {
         pose_stage(processor, poses, m_pose),
         publish_stage(*this) {
     if (!source) throw std::invalid_argument("Pipeline: source is null");
+    if (filter && options.denoise_threads > 1) {
+      denoise_pool = std::make_unique<TaskPool>(options.denoise_threads - 1, "denoise-");
+      filter->set_parallelism(options.denoise_threads, denoise_pool->runner());
+    }
     pacer = dynamic_cast<PacedSource*>(source.get());
     davis = dynamic_cast<device::DavisSource*>(source.get());
     source_snapshot.counters = source->stats();
@@ -246,6 +251,9 @@ struct Pipeline::Impl {
       throw std::invalid_argument("Pipeline: queue capacities must be > 0");
     }
     if (o.idle_wait.count() <= 0) throw std::invalid_argument("Pipeline: idle_wait must be > 0");
+    if (o.denoise_threads < 1 || o.denoise_threads > 64) {
+      throw std::invalid_argument("Pipeline: denoise_threads must be in [1, 64]");
+    }
     return o;
   }
 
@@ -422,6 +430,7 @@ struct Pipeline::Impl {
 
   const PipelineOptions options;
   std::unique_ptr<EventSource> source;
+  std::unique_ptr<TaskPool> denoise_pool;  // before the filter: it outlives the filter's use of its runner
   std::unique_ptr<denoise::Filter> filter;
   PoseSink& sink;
   PacedSource* pacer = nullptr;

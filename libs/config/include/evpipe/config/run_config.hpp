@@ -56,6 +56,9 @@ struct DenoiseConfig {
   std::string filter = "curvature";
   /// KEY (or NAME.KEY in a chain) → value, as `evdenoise --set KEY=VALUE`; the filter validates them.
   std::vector<std::pair<std::string, std::string>> params;
+  /// Threads one block of the filter is spread over (denoise::Filter::set_parallelism); 0 = auto (the cores the
+  /// machine has, at most 4).
+  int threads = 0;
 };
 
 struct PoseFilesConfig {

@@ -25,6 +25,8 @@ class FilterChain final : public Filter {
   [[nodiscard]] bool has_score() const noexcept override;
   /// Every stage's items, prefixed "<stage>.".
   [[nodiscard]] std::vector<ReportItem> report() const override;
+  /// Passed on to every stage.
+  void set_parallelism(int tasks, TaskRunner runner) override;
 
   [[nodiscard]] const std::vector<std::unique_ptr<Filter>>& stages() const noexcept { return stages_; }
 

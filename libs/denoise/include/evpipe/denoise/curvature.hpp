@@ -67,6 +67,10 @@ class CurvatureFilter final : public Filter {
   /// density_passed, curvature_undefined, curvature_dropped, blocks, noise_rate_hz, density_threshold_used,
   /// latency_us.
   [[nodiscard]] std::vector<ReportItem> report() const override;
+  /// Grid backend, frames / stream: each block is cut into `tasks` row bands of about equal event counts, indexed
+  /// and fitted as separate tasks (the selection stays one step per block). Decisions are identical for any
+  /// count. Call between pushes. The other modes and the FLANN backend stay in one task.
+  void set_parallelism(int tasks, TaskRunner runner) override;
 
   /// Records per-event diagnostics into `trace` (nullptr = off). The trace is appended in decision order.
   void set_trace(CurvatureTrace* trace) noexcept;

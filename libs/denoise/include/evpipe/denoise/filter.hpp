@@ -13,6 +13,7 @@
 
 #include <concepts>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -35,6 +36,11 @@ struct Decisions {
     score.clear();
   }
 };
+
+/// Runs task(0) ... task(count - 1), possibly at the same time, and returns once every one has returned (rethrowing
+/// the first exception). The library never starts a thread: a caller that owns threads (the pipeline) passes one in
+/// to spread a filter's work over cores.
+using TaskRunner = std::function<void(int count, const std::function<void(int)>& task)>;
 
 /// One named figure of a filter's run so far (for example "curvature_undefined" or "noise_rate_hz").
 struct ReportItem {
@@ -71,6 +77,13 @@ class Filter {
   [[nodiscard]] virtual bool has_score() const noexcept { return false; }
   /// Figures of the run so far (counters, estimates); printed by `evdenoise --metrics`.
   [[nodiscard]] virtual std::vector<ReportItem> report() const { return {}; }
+  /// Lets the filter split its work into up to `tasks` independent tasks run by `runner` (tasks <= 1 or an empty
+  /// runner: one task, in the caller's thread). Decisions never depend on it. Filters whose work does not split
+  /// ignore it (the default).
+  virtual void set_parallelism(int tasks, TaskRunner runner) {
+    (void)tasks;
+    (void)runner;
+  }
 };
 
 /// A causal filter whose whole logic is one per-event decision: `bool accept(const Event&) noexcept` and

@@ -31,10 +31,13 @@ class GridBlockIndex {
  public:
   GridBlockIndex(const Sphere& sphere, const SensorGeometry& geometry);
 
-  /// Indexes `events` (time-ordered, spanning less than 2²⁹ µs); events outside the sensor are skipped.
-  void build(EventSpan events);
+  /// Indexes `events` (time-ordered, spanning less than 2²⁹ µs); events outside the sensor are skipped. Only the
+  /// events of rows [query_y_lo, query_y_hi) will be queried; the index then holds only the rows their balls reach,
+  /// so that disjoint row bands of one block can be indexed and queried by separate instances at the same time.
+  void build(EventSpan events, int query_y_lo = std::numeric_limits<int>::min(),
+             int query_y_hi = std::numeric_limits<int>::max());
 
-  /// For each event events[i], i in [first, last), inside the sensor, calls
+  /// For each event events[i], i in [first, last), inside the sensor and the rows given to build(), calls
   /// sink(i, t_us, rho, mask, const std::int32_t* counts, const double* sums_dt) with the statistics of its
   /// ball among the indexed events whose time lies in [t_lo_us, t_hi_us] (rho = Σ counts, mask bit s =
   /// counts[s] > 0). Queries arrive pixel by pixel (raster order), in time order within a pixel.
@@ -59,6 +62,10 @@ class GridBlockIndex {
   [[nodiscard]] std::size_t pixel_of(const Event& e) const noexcept {
     return static_cast<std::size_t>((e.y + extent_) * stride_ + (e.x + extent_));
   }
+  [[nodiscard]] bool indexed(const Event& e) const noexcept {
+    return geometry_.contains(e.x, e.y) && e.y >= index_y_lo_ && e.y < index_y_hi_;
+  }
+  [[nodiscard]] bool queried(const Event& e) const noexcept { return e.y >= query_y_lo_ && e.y < query_y_hi_; }
   template <bool kClamp, int kWindows, class Sink>
   void query_impl(std::size_t first, std::size_t last, std::int32_t lo_clamp, std::int32_t hi_clamp, Sink& sink);
   /// Counts, for the queries in [first, last), the neighbours at the sites of half-width 0 (same µs only):
@@ -82,6 +89,9 @@ class GridBlockIndex {
   std::ptrdiff_t offset_[kMaxSphereSites] = {};  // pixel-index offset of each site
   EventSpan events_;
   std::int64_t base_us_ = 0;
+  int query_y_lo_ = 0, query_y_hi_ = 0;          // rows queried (clamped to the sensor)
+  int index_y_lo_ = 0, index_y_hi_ = 0;          // rows indexed: the queried ones ± extent_
+  std::size_t touched_lo_ = 0, touched_hi_ = 0;  // the queried rows' range of touched_
   // Sparse CSR over the pixels that hold events ("touched", in raster order): pixel p's list is
   // [begin_[p], begin_[p] + count_[p]) followed by a sentinel (INT32_MAX) that stops the 8-wide window
   // counts at the list's end; an untouched pixel points at the shared sentinel at entry 0. Work per block
@@ -248,7 +258,8 @@ void GridBlockIndex::query_impl(std::size_t first, std::size_t last, std::int32_
   const auto hi_index = static_cast<std::uint32_t>(last);
   const bool any_tie = !ties_.empty();
   // Raster order: the neighbour lists of consecutive pixels are neighbours in memory.
-  for (const std::uint32_t p : touched_) {
+  for (std::size_t tp = touched_lo_; tp < touched_hi_; ++tp) {
+    const std::uint32_t p = touched_[tp];
     // This pixel's queries: a contiguous run of its time-sorted list.
     std::uint32_t qa = begin_[p];
     const std::uint32_t pe = qa + count_[p];

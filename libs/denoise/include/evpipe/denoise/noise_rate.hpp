@@ -60,7 +60,7 @@ class NoiseRateEstimator {
     if (!enabled_) return threshold_;
     return adaptive_threshold(t_us);
   }
-  void count_failure() noexcept { ++failed_; }
+  void count_failures(std::int64_t n) noexcept { failed_ += static_cast<double>(n); }
   [[nodiscard]] double rate_hz() const noexcept { return rate_hz_; }
   [[nodiscard]] std::int64_t current_threshold() const noexcept { return threshold_; }
   [[nodiscard]] std::int64_t periods() const noexcept { return periods_; }

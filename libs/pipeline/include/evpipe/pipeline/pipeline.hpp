@@ -4,6 +4,7 @@
 //
 //   source ──[batches]──▶ denoise + windows ──[windows]──▶ pose ──[poses]──▶ publish
 //   EventSource::next()   FilteredStream + TimeSlicer      WindowProcessor    PoseSink (+ stats every second)
+//                         (+ denoise_threads − 1 TaskPool workers for one block's row bands)
 //
 // Policies: replay is lossless (every queue blocks its producer, the reader waits); live never blocks the reader
 // (batches: drop_newest, windows: latest_wins, poses: drop_newest), every drop is counted.
@@ -150,6 +151,9 @@ struct PipelineOptions {
   std::chrono::microseconds source_poll{1000};
   /// After a stop request, stages drain their queues for at most this long; then what is left is dropped.
   std::chrono::milliseconds drain_timeout{800};
+  /// Threads the denoise stage spreads the filter's work over (its own thread + denoise_threads − 1 pool workers,
+  /// denoise::Filter::set_parallelism); 1 = the stage's thread only. Decisions do not depend on it.
+  int denoise_threads = 1;
 };
 
 class Pipeline {
