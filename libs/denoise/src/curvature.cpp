@@ -390,6 +390,7 @@ struct CurvatureFilter::Impl {
     runner = std::move(r);
     judge.set_tasks(n, sphere);
     grids.resize(static_cast<std::size_t>(n));
+    band_events.resize(static_cast<std::size_t>(n));
     for (auto& g : grids) {
       if (!g) g = std::make_unique<GridBlockIndex>(sphere, geometry);
     }
@@ -433,6 +434,7 @@ struct CurvatureFilter::Impl {
   TaskRunner runner;
   std::vector<int> band;
   std::vector<std::uint32_t> row_count;
+  std::vector<std::vector<std::uint32_t>> band_events;  // per task: positions in the block's span
   std::unique_ptr<GridRingIndex> ring;
   std::unique_ptr<FlannBallIndex> flann;
 
@@ -504,8 +506,23 @@ struct CurvatureFilter::Impl {
       const int n = static_cast<int>(grids.size());
       split_rows(span, q0, q1);
       const auto build = [&](int task) {
-        grids[static_cast<std::size_t>(task)]->build(span, band[static_cast<std::size_t>(task)],
-                                                     band[static_cast<std::size_t>(task) + 1]);
+        const auto b = static_cast<std::size_t>(task);
+        if (n == 1) {
+          grids[b]->build(span);
+          return;
+        }
+        // One scan picks this band's events (its rows ± the ball's extent); the index build, the ties and the
+        // queries then see only those.
+        const int y_lo = band[b] - sphere.extent_px();
+        const int y_hi = band[b + 1] + sphere.extent_px();
+        auto& mine = band_events[b];
+        mine.clear();
+        if (band[b] < band[b + 1]) {
+          for (std::size_t i = 0; i < span.size(); ++i) {
+            if (span[i].y >= y_lo && span[i].y < y_hi) mine.push_back(static_cast<std::uint32_t>(i));
+          }
+        }
+        grids[b]->build(span, mine, band[b], band[b + 1]);
       };
       const auto query = [&](int task, std::size_t a, std::size_t b, std::int64_t threshold) {
         auto sink = [&](std::size_t i, std::int64_t, std::int32_t rho, std::uint64_t mask, const std::int32_t* c,

@@ -26,6 +26,18 @@ GridBlockIndex::GridBlockIndex(const Sphere& sphere, const SensorGeometry& geome
 }
 
 void GridBlockIndex::build(EventSpan events, int query_y_lo, int query_y_hi) {
+  use_subset_ = false;
+  subset_ = {};
+  build_from(events, query_y_lo, query_y_hi);
+}
+
+void GridBlockIndex::build(EventSpan events, std::span<const std::uint32_t> subset, int query_y_lo, int query_y_hi) {
+  use_subset_ = true;
+  subset_ = subset;
+  build_from(events, query_y_lo, query_y_hi);
+}
+
+void GridBlockIndex::build_from(EventSpan events, int query_y_lo, int query_y_hi) {
   events_ = events;
   base_us_ = events.empty() ? 0 : events.front().t_us;
   query_y_lo_ = std::clamp(query_y_lo, 0, geometry_.height);
@@ -37,14 +49,13 @@ void GridBlockIndex::build(EventSpan events, int query_y_lo, int query_y_hi) {
     count_[p] = 0;
   }
   touched_.clear();
-  std::size_t n = 0;
-  for (const Event& e : events) {
-    if (!indexed(e)) continue;
+  for_each_position([&](std::size_t i) {
+    const Event& e = events[i];
+    if (!indexed(e)) return;
     const std::size_t p = pixel_of(e);
     touched_bits_[p >> 6] |= std::uint64_t{1} << (p & 63);
     ++count_[p];
-    ++n;
-  }
+  });
   // Touched pixels in raster order, each list followed by its sentinel; entry 0 is the shared sentinel.
   std::uint32_t pos = 1;
   for (std::size_t w = 0; w < touched_bits_.size(); ++w) {
@@ -63,13 +74,13 @@ void GridBlockIndex::build(EventSpan events, int query_y_lo, int query_y_hi) {
   time_.resize(total + 8);  // an 8-wide count may read up to 7 entries past the last sentinel
   index_.resize(total);
   prefix_.resize(total + 1);
-  for (std::size_t i = 0; i < events.size(); ++i) {
+  for_each_position([&](std::size_t i) {
     const Event& e = events[i];
-    if (!indexed(e)) continue;
+    if (!indexed(e)) return;
     const std::uint32_t k = cursor_[pixel_of(e)]++;
     time_[k] = static_cast<std::int32_t>(e.t_us - base_us_);
     index_[k] = static_cast<std::uint32_t>(i);
-  }
+  });
   constexpr std::int32_t kSentinel = std::numeric_limits<std::int32_t>::max();
   time_[0] = kSentinel;
   index_[0] = std::numeric_limits<std::uint32_t>::max();
@@ -80,7 +91,6 @@ void GridBlockIndex::build(EventSpan events, int query_y_lo, int query_y_hi) {
   std::fill(time_.begin() + static_cast<std::ptrdiff_t>(total), time_.end(), kSentinel);
   prefix_[0] = 0;
   for (std::size_t k = 0; k < total; ++k) prefix_[k + 1] = prefix_[k] + time_[k];
-  (void)n;
   const auto row_start = [&](int y) { return static_cast<std::uint32_t>((y + extent_) * stride_); };
   touched_lo_ = static_cast<std::size_t>(std::lower_bound(touched_.begin(), touched_.end(), row_start(query_y_lo_)) -
                                          touched_.begin());
@@ -96,10 +106,24 @@ void GridBlockIndex::find_ties(std::size_t first, std::size_t last) {
     stamp_.assign(begin_.size(), 0);
     stamp_count_.assign(begin_.size(), 0);
   }
-  std::size_t r0 = first;
-  while (r0 < last) {
+  if (use_subset_) {
+    const auto* lo = std::lower_bound(subset_.data(), subset_.data() + subset_.size(), first);
+    const auto* hi = std::lower_bound(lo, subset_.data() + subset_.size(), last);
+    find_ties_in(static_cast<std::size_t>(hi - lo), [lo](std::size_t k) { return static_cast<std::size_t>(lo[k]); });
+  } else {
+    find_ties_in(last - first, [first](std::size_t k) { return first + k; });
+  }
+  // ties_ is sorted by position (runs and their events come in increasing position): query() finds them there.
+  for (const Tie& t : ties_) has_tie_[t.index - first] = 1;
+}
+
+template <class Pos>
+void GridBlockIndex::find_ties_in(std::size_t count, Pos&& pos) {
+  std::size_t r0 = 0;
+  while (r0 < count) {
+    const std::int64_t t = events_[pos(r0)].t_us;
     std::size_t r1 = r0 + 1;
-    while (r1 < last && events_[r1].t_us == events_[r0].t_us) ++r1;
+    while (r1 < count && events_[pos(r1)].t_us == t) ++r1;
     if (r1 - r0 >= 2) {
       // A run of equal timestamps: count its events per pixel (stamped by run), then look up each event's
       // half-width-0 sites. Linear in the run's length.
@@ -107,23 +131,24 @@ void GridBlockIndex::find_ties(std::size_t first, std::size_t last) {
         std::fill(stamp_.begin(), stamp_.end(), 0U);
         run_id_ = 1;
       }
-      for (std::size_t i = r0; i < r1; ++i) {
-        if (!indexed(events_[i])) continue;
-        const std::size_t p = pixel_of(events_[i]);
+      for (std::size_t r = r0; r < r1; ++r) {
+        const Event& e = events_[pos(r)];
+        if (!indexed(e)) continue;
+        const std::size_t p = pixel_of(e);
         if (stamp_[p] != run_id_) {
           stamp_[p] = run_id_;
           stamp_count_[p] = 0;
         }
         ++stamp_count_[p];
       }
-      for (std::size_t i = r0; i < r1; ++i) {
+      for (std::size_t r = r0; r < r1; ++r) {
+        const std::size_t i = pos(r);
         if (!indexed(events_[i]) || !queried(events_[i])) continue;
         const auto p = static_cast<std::ptrdiff_t>(pixel_of(events_[i]));
         for (const int s : tie_sites_) {
           const auto q = static_cast<std::size_t>(p + offset_[s]);
           if (stamp_[q] == run_id_) {
             ties_.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(s), stamp_count_[q]});
-            has_tie_[i - first] = 1;
           }
         }
       }

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <span>
 #include <stdexcept>
 #include <vector>
 
@@ -36,6 +37,11 @@ class GridBlockIndex {
   /// so that disjoint row bands of one block can be indexed and queried by separate instances at the same time.
   void build(EventSpan events, int query_y_lo = std::numeric_limits<int>::min(),
              int query_y_hi = std::numeric_limits<int>::max());
+  /// As build(), but only the events at the positions `subset` (increasing; it must hold every event of the
+  /// rows [query_y_lo − extent, query_y_hi + extent) and may hold others) are looked at, by build() and by
+  /// query(): a caller that has sorted a block into row bands once hands each band its own share instead of
+  /// having every band scan the whole block. `subset` must stay valid until the next build().
+  void build(EventSpan events, std::span<const std::uint32_t> subset, int query_y_lo, int query_y_hi);
 
   /// For each event events[i], i in [first, last), inside the sensor and the rows given to build(), calls
   /// sink(i, t_us, rho, mask, const std::int32_t* counts, const double* sums_dt) with the statistics of its
@@ -71,6 +77,18 @@ class GridBlockIndex {
   /// Counts, for the queries in [first, last), the neighbours at the sites of half-width 0 (same µs only):
   /// those are found among runs of equal timestamps instead of by a window scan per query.
   void find_ties(std::size_t first, std::size_t last);
+  template <class Pos>
+  void find_ties_in(std::size_t count, Pos&& pos);
+  void build_from(EventSpan events, int query_y_lo, int query_y_hi);
+  /// Calls f(i) for every position of the events to index, in increasing order.
+  template <class F>
+  void for_each_position(F&& f) const {
+    if (use_subset_) {
+      for (const std::uint32_t i : subset_) f(static_cast<std::size_t>(i));
+    } else {
+      for (std::size_t i = 0; i < events_.size(); ++i) f(i);
+    }
+  }
 
   struct Tie {
     std::uint32_t index;  // query position in the span
@@ -88,6 +106,8 @@ class GridBlockIndex {
   std::int32_t hw32_[kMaxSphereSites] = {};
   std::ptrdiff_t offset_[kMaxSphereSites] = {};  // pixel-index offset of each site
   EventSpan events_;
+  bool use_subset_ = false;
+  std::span<const std::uint32_t> subset_;
   std::int64_t base_us_ = 0;
   int query_y_lo_ = 0, query_y_hi_ = 0;          // rows queried (clamped to the sensor)
   int index_y_lo_ = 0, index_y_hi_ = 0;          // rows indexed: the queried ones ± extent_
