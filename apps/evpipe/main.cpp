@@ -299,6 +299,7 @@ int run(const Cli& cli) {
   summary.latency_event_ms_p99 = static_cast<double>(stats.latency_event_to_publish_ns.p99) / 1e6;
   summary.latency_window_ms_p50 = static_cast<double>(stats.latency_window_to_publish_ns.p50) / 1e6;
   summary.latency_window_ms_p99 = static_cast<double>(stats.latency_window_to_publish_ns.p99) / 1e6;
+  summary.latency_window_ms_max = static_cast<double>(stats.latency_window_to_publish_ns.max) / 1e6;
   if (publisher) {
     const auto c = publisher->counters();
     summary.lcm_url = transport::effective_lcm_url(cfg.lcm.url);

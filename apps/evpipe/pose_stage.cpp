@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <limits>
+
 #include "evpipe/camera/error.hpp"
 #include "evpipe/camera/prior.hpp"
 
@@ -65,7 +67,10 @@ pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, doub
   // An attempt runs on the worker: this window waits for nothing.
   if (init_worker_->pending()) {
     std::optional<pose::InitOutcome> outcome = init_worker_->poll();
-    if (!outcome) return estimator_.initialising_window(events, t_us);
+    if (!outcome) {
+      feed(events, t_us);
+      return estimator_.initialising_window(events, t_us);
+    }
     const std::uint64_t before = estimator_.counters().init_successes;
     auto e = estimator_.complete_initialisation(*outcome, events, t_us);
     if (estimator_.counters().init_successes > before) {  // applied (not dropped as stale)
@@ -76,11 +81,53 @@ pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, doub
   if (estimator_.needs_initialisation()) {
     pose::PoseEstimate now;
     std::optional<pose::InitJob> job = estimator_.prepare_initialisation(events, t_us, now);
-    // The estimator outlives the worker (member order); the job owns its events.
-    if (job) init_worker_->submit([this, j = std::move(*job)] { return estimator_.run_initialisation(j); });
+    if (job) {
+      {
+        const std::lock_guard lock(feed_.mutex);
+        feed_.events.clear();
+        feed_.newest_t_us = job->events.empty() ? std::numeric_limits<std::int64_t>::min() : job->events.back().t_us;
+        feed_.window_t_us = job->t_us;
+      }
+      // The estimator and the feed outlive the worker (member order); the job owns its events.
+      init_worker_->submit([this, j = std::move(*job)] { return run_attempt(j); });
+    }
     return now;
   }
   return estimator_.process(events, t_us);
+}
+
+void PoseStage::feed(EventSpan events, std::int64_t t_us) {
+  const std::lock_guard lock(feed_.mutex);
+  // Windows may overlap (hop < length): only events newer than those already fed.
+  for (const Event& e : events) {
+    if (e.t_us <= feed_.newest_t_us) continue;
+    feed_.events.push_back(e);
+    feed_.newest_t_us = e.t_us;
+  }
+  feed_.window_t_us = t_us;
+  // Bounded like the estimator's own memory of an attempt's windows: a longer attempt catches up over the newest.
+  const std::size_t cap = pose::PoseEstimator::kCatchUpMaxEvents;
+  if (feed_.events.size() > 2 * cap) {
+    feed_.events.erase(feed_.events.begin(), feed_.events.end() - static_cast<std::ptrdiff_t>(cap));
+  }
+}
+
+pose::InitOutcome PoseStage::run_attempt(const pose::InitJob& job) {  // on the worker
+  pose::InitOutcome outcome = estimator_.run_initialisation(job);
+  if (!outcome.ok) return outcome;
+  std::vector<Event> since;
+  std::int64_t window_t_us = 0;
+  {
+    const std::lock_guard lock(feed_.mutex);
+    since.swap(feed_.events);
+    window_t_us = feed_.window_t_us;
+  }
+  if (since.empty()) return outcome;
+  std::vector<Event> events;  // the job's events as history, then everything since
+  events.reserve(job.events.size() + since.size());
+  events.insert(events.end(), job.events.begin(), job.events.end());
+  events.insert(events.end(), since.begin(), since.end());
+  return estimator_.advance_initialisation(outcome, events, window_t_us);
 }
 
 pose::PoseEstimate PoseStage::process(const EventWindow& window) {

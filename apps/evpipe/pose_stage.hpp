@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -58,8 +59,21 @@ class PoseStage {
   /// init_ms: set to the worker's compute time when this window applied its successful attempt.
   pose::PoseEstimate estimate(EventSpan events, std::int64_t t_us, double& init_ms);
 
+  /// Events of the windows that pass while an attempt runs (appended by this thread), taken by the worker once
+  /// its attempt has succeeded: it tracks them itself (PoseEstimator::advance_initialisation), so that the window
+  /// applying the outcome is not held up by a catch-up of up to 8 updates.
+  struct CatchUpFeed {
+    std::mutex mutex;
+    std::vector<Event> events;  ///< time-ordered, newer than the job's events
+    std::int64_t newest_t_us = 0;
+    std::int64_t window_t_us = 0;  ///< time of the newest window fed
+  };
+  void feed(EventSpan events, std::int64_t t_us);
+  pose::InitOutcome run_attempt(const pose::InitJob& job);
+
   pose::PoseEstimator estimator_;
-  // Declared after the estimator: destroyed (joined) first, while the estimator its job reads still exists.
+  CatchUpFeed feed_;
+  // Declared after the estimator and the feed: destroyed (joined) first, while what its job reads still exists.
   std::unique_ptr<pipeline::BackgroundTask<pose::InitOutcome>> init_worker_;
   std::optional<camera::TrajectoryCsvWriter> csv_;
   PoseSummary summary_;

@@ -33,6 +33,7 @@ struct RunSummary {
   std::vector<std::pair<std::string, std::uint64_t>> queue_drops;  ///< per queue: items dropped (live policy)
   double latency_event_ms_p50 = 0, latency_event_ms_p99 = 0;       ///< newest event read → pose published
   double latency_window_ms_p50 = 0, latency_window_ms_p99 = 0;     ///< window complete → pose published
+  double latency_window_ms_max = 0;                                ///< the slowest window
   std::string lcm_url;                                             ///< empty: LCM off
   std::uint64_t lcm_poses = 0, lcm_stats = 0, lcm_failures = 0;
   bool ground_truth_given = false;

@@ -240,6 +240,71 @@ TEST(PoseEstimator, InitialisationElsewhereStartsTheTrackOnALaterWindow) {
   EXPECT_TRUE(split.needs_initialisation());
 }
 
+TEST(PoseEstimator, CatchUpOnTheWorkerEqualsTheCatchUpOnThePoseThread) {
+  const std::uint64_t seed = 20261121;
+  SCOPED_TRACE(::testing::Message() << "seed " << seed);
+  // As above (motion five times faster, 8 windows during the attempt): once on the pose thread
+  // (complete_initialisation alone), once with the worker tracking the fed windows first (advance_initialisation,
+  // as PoseStage does), which leaves one slice to the pose thread. Same slices, same events: the same pose (to the
+  // solver's tolerance: the histories differ before the attempt's window).
+  const Scene s("roadheader-wireframe.yaml", 1.0, seed, 1'500'000, 5.0);
+  pose::EstimatorOptions o;  // evpipe's: slices of the pipeline's windows, one hop apart
+  o.track.window_us = kWindow_us;
+  o.track.step_us = kWindow_us;
+  pose::PoseEstimator a(s.scene.camera, s.scene.model, s.prior, o);
+  pose::PoseEstimator b(s.scene.camera, s.scene.model, s.prior, o);
+  std::int64_t t0 = 0;
+  std::optional<pose::InitJob> job;
+  for (; t0 + kWindow_us <= 600'000 && !job; t0 += kWindow_us) {
+    pose::PoseEstimate now;
+    const auto w = s.window(t0, t0 + kWindow_us);
+    job = a.prepare_initialisation(w, t0 + kWindow_us, now);
+    ASSERT_EQ(b.prepare_initialisation(w, t0 + kWindow_us, now).has_value(), job.has_value());
+    if (job && !a.run_initialisation(*job).ok) {  // a failed attempt: both try the next window
+      a.complete_initialisation(a.run_initialisation(*job), w, t0 + kWindow_us);
+      b.complete_initialisation(b.run_initialisation(*job), w, t0 + kWindow_us);
+      job.reset();
+    }
+  }
+  ASSERT_TRUE(job);
+  const pose::InitOutcome outcome = a.run_initialisation(*job);
+  ASSERT_TRUE(outcome.ok) << outcome.note;
+  std::vector<Event> fed(job->events.begin(), job->events.end());
+  std::int64_t fed_t_us = 0;
+  for (int i = 0; i < 8; ++i, t0 += kWindow_us) {
+    const auto w = s.window(t0, t0 + kWindow_us);
+    a.initialising_window(w, t0 + kWindow_us);
+    b.initialising_window(w, t0 + kWindow_us);
+    for (const Event& e : w)
+      if (e.t_us > fed.back().t_us) fed.push_back(e);
+    fed_t_us = t0 + kWindow_us;
+  }
+  const pose::InitOutcome advanced = b.advance_initialisation(outcome, fed, fed_t_us);
+  EXPECT_EQ(advanced.caught_up_slices, 7);
+  EXPECT_TRUE(advanced.previous.has_value());
+  EXPECT_GT(advanced.t_us, outcome.t_us);
+  const auto w = s.window(t0, t0 + kWindow_us);
+  const auto on_pose_thread = a.complete_initialisation(outcome, w, t0 + kWindow_us);
+  const auto on_worker = b.complete_initialisation(advanced, w, t0 + kWindow_us);
+  ASSERT_TRUE(on_pose_thread.pose_valid) << on_pose_thread.note;
+  ASSERT_TRUE(on_worker.pose_valid) << on_worker.note;
+  EXPECT_TRUE(on_worker.initialised_now);
+  EXPECT_LT((on_worker.T_cam_model.t_cam_model_m - on_pose_thread.T_cam_model.t_cam_model_m).norm(), 1e-6);
+  EXPECT_LT(camera::rotation_angle_deg(on_worker.T_cam_model, on_pose_thread.T_cam_model), 1e-4);
+  EXPECT_EQ(a.counters().unhealthy_updates, b.counters().unhealthy_updates);
+  EXPECT_EQ(a.counters().windows, b.counters().windows);
+  // The next window too (constant velocity from the two last poses, carried over by the worker).
+  t0 += kWindow_us;
+  const auto next_a = a.process(s.window(t0, t0 + kWindow_us), t0 + kWindow_us);
+  const auto next_b = b.process(s.window(t0, t0 + kWindow_us), t0 + kWindow_us);
+  ASSERT_TRUE(next_a.pose_valid && next_b.pose_valid);
+  EXPECT_LT((next_a.T_cam_model.t_cam_model_m - next_b.T_cam_model.t_cam_model_m).norm(), 1e-6);
+  // A failed outcome is not advanced.
+  pose::InitOutcome failed = outcome;
+  failed.ok = false;
+  EXPECT_EQ(b.advance_initialisation(failed, fed, fed_t_us).caught_up_slices, 0);
+}
+
 // Scenes where the initialiser accepted a wrong pose (15-95 mm / up to 21 deg off before the fix; found by a sweep
 // over 60 scenes per noise level, docs/algorithms.md): RANSAC stopped at the first pose that explained 80 % of the
 // events on the detected lines, a count that includes events near the model lying on no detected line. It now

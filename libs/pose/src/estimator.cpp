@@ -30,7 +30,11 @@ void EstimatorOptions::validate() const {
 
 PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model,
                              std::optional<camera::PosePrior> prior, EstimatorOptions options)
-    : camera_(std::move(camera)), model_(std::move(model)), prior_(std::move(prior)), options_(std::move(options)) {
+    : camera_(std::move(camera)),
+      map_(camera_),
+      model_(std::move(model)),
+      prior_(std::move(prior)),
+      options_(std::move(options)) {
   options_.validate();
   if (model_.segments_m.size() < 4)
     throw std::invalid_argument(
@@ -41,9 +45,7 @@ void PoseEstimator::reset() {
   ++generation_;
   attempt_t_us_.reset();
   recent_.clear();
-  last_.reset();
-  previous_.reset();
-  unhealthy_in_a_row_ = 0;
+  track_ = TrackState{};
   set_status(TrackStatus::initialising);
 }
 
@@ -52,17 +54,19 @@ void PoseEstimator::set_status(TrackStatus s) {
   status_ = s;
 }
 
-camera::Pose PoseEstimator::predict(std::int64_t t_end_us) const {
-  if (!options_.constant_velocity || !previous_ || !last_ || last_->t_us <= previous_->t_us) return last_->pose;
+camera::Pose PoseEstimator::predict(const TrackState& state, std::int64_t t_end_us) const {
+  const auto& last = state.last;
+  const auto& previous = state.previous;
+  if (!options_.constant_velocity || !previous || !last || last->t_us <= previous->t_us) return last->pose;
   // Constant velocity on SE(3): apply the last relative motion, scaled to the time step, once more.
-  const double s = static_cast<double>(t_end_us - last_->t_us) / static_cast<double>(last_->t_us - previous_->t_us);
-  if (!(s > 0.0) || s > 3.0) return last_->pose;                       // a long gap makes the extrapolation meaningless
-  const camera::Pose delta = last_->pose * previous_->pose.inverse();  // T_last_prev in the camera frame
+  const double s = static_cast<double>(t_end_us - last->t_us) / static_cast<double>(last->t_us - previous->t_us);
+  if (!(s > 0.0) || s > 3.0) return last->pose;                      // a long gap makes the extrapolation meaningless
+  const camera::Pose delta = last->pose * previous->pose.inverse();  // T_last_prev in the camera frame
   const Eigen::AngleAxisd rot(delta.q_cam_model);
   camera::Pose step;
   step.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(rot.angle() * s, rot.axis()));
   step.t_cam_model_m = delta.t_cam_model_m * s;  // small-motion approximation of the screw, fine at window steps
-  return step * last_->pose;
+  return step * last->pose;
 }
 
 namespace {
@@ -84,8 +88,8 @@ PoseEstimate PoseEstimator::held_estimate(EventSpan window, std::int64_t t_end_u
   out.t_us = t_end_us;
   out.window_events = window.size();
   out.status = status_;
-  if (last_) {
-    out.T_cam_model = last_->pose;
+  if (track_.last) {
+    out.T_cam_model = track_.last->pose;
   } else if (prior_) {
     out.T_cam_model = prior_->pose;
   }
@@ -122,9 +126,9 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
   job.generation = generation_;
   // After a loss search around the last good pose; before the first success around the configured prior.
   job.search = prior_;
-  if (last_) {
+  if (track_.last) {
     camera::PosePrior around;
-    around.pose = last_->pose;
+    around.pose = track_.last->pose;
     around.position_tolerance_m = options_.reinit_position_tolerance_m;
     around.angle_tolerance_deg = options_.reinit_angle_tolerance_deg;
     job.search = around;
@@ -147,7 +151,7 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   }
   // Polish the initial pose on the job's events with the tracker so the first published pose carries a robust
   // scale and a covariance like every later one.
-  out.polished = track_window(job.events, camera_, model_, init.T_cam_model, options_.track);
+  out.polished = track_window(job.events, map_, model_, init.T_cam_model, options_.track);
   if (!out.polished.healthy) {
     out.note = "initialisation found a pose but tracking rejected it: " + out.polished.reason;
     return out;
@@ -163,9 +167,10 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
   }
   const TrackUpdate& u = outcome.polished;
   ++counters_.init_successes;
-  previous_.reset();
-  last_ = camera::StampedPose{outcome.t_us, u.T_cam_model};
-  unhealthy_in_a_row_ = 0;
+  // Carried over the attempt's windows on the worker (advance_initialisation): the pose before, for constant
+  // velocity, and the updates it ran.
+  track_ = TrackState{camera::StampedPose{outcome.t_us, u.T_cam_model}, outcome.previous, 0, false};
+  counters_.unhealthy_updates += outcome.caught_up_unhealthy;
   set_status(TrackStatus::tracking);
   out.status = status_;
   publish_update(u, out);
@@ -193,24 +198,13 @@ PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, 
     remember(window, t_end_us);
     return counted(apply_initialisation(outcome, held_estimate(window, t_end_us)));
   }
-  // Found on an earlier window: the track starts there. The target moved while the attempt ran, so the windows
-  // that passed meanwhile are tracked first, on the remembered events (window_us slices centred on their times,
-  // step_us apart, at most kCatchUpMaxSlices: a long attempt is crossed in longer strides), each from the one
-  // before: the current window then starts from a recent pose, not from where the target was when the attempt
-  // began. Slices too sparse to track (not remembered, or windows dropped upstream) are skipped.
+  // Found on an earlier window: the track starts there (or at the last slice the worker tracked,
+  // advance_initialisation) and catches up the windows since on the remembered events (catch_up).
   apply_initialisation(outcome, PoseEstimate{});
-  const std::int64_t length = std::max<std::int64_t>(options_.track.window_us, 1);
-  const std::int64_t span = t_end_us - outcome.t_us;
-  const std::int64_t step = std::max({options_.track.step_us, span / (kCatchUpMaxSlices + 1), std::int64_t{1}});
-  int slices = 0;
-  const auto before = [](const Event& e, std::int64_t v) { return e.t_us < v; };
-  for (std::int64_t t = outcome.t_us + step; t + step <= t_end_us && status_ == TrackStatus::tracking; t += step) {
-    const auto first = std::lower_bound(recent_.begin(), recent_.end(), t - length / 2, before);
-    const auto last = std::lower_bound(first, recent_.end(), t + length - length / 2, before);
-    if (static_cast<std::size_t>(last - first) < options_.track_min_window_events) continue;
-    (void)track(EventSpan(first, last), t, EventSpan(recent_.begin(), last));
-    ++slices;
-  }
+  std::uint64_t unhealthy = 0;
+  const int slices = outcome.caught_up_slices + catch_up(track_, outcome.t_us, t_end_us, recent_, unhealthy);
+  counters_.unhealthy_updates += unhealthy;
+  if (track_.lost) set_status(TrackStatus::lost);
   ++counters_.windows;
   remember(window, t_end_us);
   PoseEstimate out =
@@ -265,10 +259,20 @@ PoseEstimate PoseEstimator::counted(PoseEstimate out) {
 }
 
 PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, EventSpan history) {
+  std::uint64_t unhealthy = 0;
+  PoseEstimate out = track_step(track_, window, t_end_us, history, unhealthy);
+  counters_.unhealthy_updates += unhealthy;
+  if (track_.lost) set_status(TrackStatus::lost);
+  out.status = status_;
+  return out;
+}
+
+PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std::int64_t t_end_us, EventSpan history,
+                                       std::uint64_t& unhealthy) const {
   PoseEstimate out;
-  const camera::Pose predicted = predict(t_end_us);
+  const camera::Pose predicted = predict(state, t_end_us);
   const EventSpan events = tracking_events(window, t_end_us, history);
-  const TrackUpdate u = track_window(events, camera_, model_, predicted, options_.track);
+  const TrackUpdate u = track_window(events, map_, model_, predicted, options_.track);
   out.t_us = t_end_us;
   out.window_events = events.size();
   // A target cannot jump: an update far from the prediction has locked onto other edges (a wrong local
@@ -276,27 +280,68 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
   const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, predicted) > options_.max_step_m ||
                                     camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
   if (u.healthy && !jumped) {
-    unhealthy_in_a_row_ = 0;
-    previous_ = last_;
-    last_ = camera::StampedPose{t_end_us, u.T_cam_model};
+    state.unhealthy_in_a_row = 0;
+    state.previous = state.last;
+    state.last = camera::StampedPose{t_end_us, u.T_cam_model};
     publish_update(u, out);
   } else {
-    ++counters_.unhealthy_updates;
-    ++unhealthy_in_a_row_;
-    out.T_cam_model = last_->pose;  // hold the last good pose; not published as valid
+    ++unhealthy;
+    ++state.unhealthy_in_a_row;
+    out.T_cam_model = state.last->pose;  // hold the last good pose; not published as valid
     out.inliers = u.inliers;
     out.sigma_px = u.sigma_px;
     out.note = jumped ? fmt::format("tracking: the update moved {:.0f} mm / {:.1f} deg from the prediction",
                                     1000.0 * camera::translation_distance_m(u.T_cam_model, predicted),
                                     camera::rotation_angle_deg(u.T_cam_model, predicted))
                       : "tracking: " + u.reason;
-    if (unhealthy_in_a_row_ >= options_.lost_after_windows) {
-      set_status(TrackStatus::lost);
-      previous_.reset();
+    if (state.unhealthy_in_a_row >= options_.lost_after_windows) {
+      state.lost = true;
+      state.previous.reset();
     }
   }
-  out.status = status_;
+  out.status = state.lost ? TrackStatus::lost : TrackStatus::tracking;
   return out;
+}
+
+int PoseEstimator::catch_up(TrackState& state, std::int64_t from_us, std::int64_t to_us, EventSpan events,
+                            std::uint64_t& unhealthy) const {
+  // Found on an earlier window: the track starts there. The target moved while the attempt ran, so the windows
+  // that passed meanwhile are tracked first, on the remembered events (window_us slices centred on their times,
+  // step_us apart, at most kCatchUpMaxSlices: a long attempt is crossed in longer strides), each from the one
+  // before: the current window then starts from a recent pose, not from where the target was when the attempt
+  // began. Slices too sparse to track (not remembered, or windows dropped upstream) are skipped.
+  const std::int64_t length = std::max<std::int64_t>(options_.track.window_us, 1);
+  const std::int64_t span = to_us - from_us;
+  const std::int64_t step = std::max({options_.track.step_us, span / (kCatchUpMaxSlices + 1), std::int64_t{1}});
+  int slices = 0;
+  const auto before = [](const Event& e, std::int64_t v) { return e.t_us < v; };
+  for (std::int64_t t = from_us + step; t + step <= to_us && !state.lost; t += step) {
+    const auto* first = std::lower_bound(events.data(), events.data() + events.size(), t - length / 2, before);
+    const auto* last = std::lower_bound(first, events.data() + events.size(), t + length - length / 2, before);
+    if (static_cast<std::size_t>(last - first) < options_.track_min_window_events) continue;
+    (void)track_step(state, EventSpan(first, last), t, EventSpan(events.data(), last), unhealthy);
+    ++slices;
+  }
+  return slices;
+}
+
+InitOutcome PoseEstimator::advance_initialisation(const InitOutcome& outcome, EventSpan events,
+                                                  std::int64_t t_now_us) const {
+  if (!outcome.ok) return outcome;
+  TrackState state{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model}, outcome.previous, 0, false};
+  std::uint64_t unhealthy = 0;
+  const int slices = catch_up(state, outcome.t_us, t_now_us, events, unhealthy);
+  // Handed over only from a healthy last slice: the pose thread resumes from exactly that state.
+  if (state.lost || slices == 0 || state.unhealthy_in_a_row > 0 || !state.last || state.last->t_us == outcome.t_us) {
+    return outcome;
+  }
+  InitOutcome advanced = outcome;
+  advanced.t_us = state.last->t_us;
+  advanced.polished.T_cam_model = state.last->pose;
+  advanced.previous = state.previous;
+  advanced.caught_up_slices = outcome.caught_up_slices + slices;
+  advanced.caught_up_unhealthy = outcome.caught_up_unhealthy + unhealthy;
+  return advanced;
 }
 
 }  // namespace evpipe::pose

@@ -11,6 +11,7 @@
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/core/event.hpp"
 #include "evpipe/pose/initialiser.hpp"
+#include "evpipe/pose/projection.hpp"
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/pose/types.hpp"
 
@@ -87,6 +88,11 @@ struct InitOutcome {
   TrackUpdate polished;  ///< the found pose polished by the tracker on the job's events (when ok)
   std::string note;      ///< why not ok
   std::uint64_t generation{0};
+  /// Set by advance_initialisation(): the track was carried on the worker over the windows that passed during
+  /// the attempt; t_us and polished are then those of the last slice tracked, `previous` the pose before it.
+  std::optional<camera::StampedPose> previous;
+  int caught_up_slices{0};
+  std::uint64_t caught_up_unhealthy{0};  ///< unhealthy updates among those slices
 };
 
 /// Counters over the estimator's life (for the run summary and the statistics message).
@@ -124,11 +130,26 @@ class PoseEstimator {
   /// The attempt. Const and touching only the camera, model and options: safe on another thread while the
   /// owner keeps calling the other members.
   [[nodiscard]] InitOutcome run_initialisation(const InitJob& job) const;
+  /// On the worker, after run_initialisation(): tracks the windows that passed during the attempt, so that the
+  /// window applying the outcome has (almost) nothing left to catch up and is not late. `events`: every event
+  /// from the attempt's window on (time-ordered; the job's events first), up to the window at `t_now_us`. Same
+  /// slices, same updates as complete_initialisation() would run over them. Const, like run_initialisation.
+  /// Returns the outcome unchanged when it failed or when the track is lost on the way (complete_initialisation
+  /// then catches up as before and reports the loss).
+  [[nodiscard]] InitOutcome advance_initialisation(const InitOutcome& outcome, EventSpan events,
+                                                   std::int64_t t_now_us) const;
   /// A window that arrives while an attempt runs: remembered (it feeds the next attempt), not valid.
   PoseEstimate initialising_window(EventSpan window, std::int64_t t_end_us);
   /// Applies a finished attempt. On success the track starts from the found pose (at the job's time) and this
   /// window is tracked from it (the estimate says initialised_now); an outcome from before a reset() is dropped.
   PoseEstimate complete_initialisation(const InitOutcome& outcome, EventSpan window, std::int64_t t_end_us);
+
+  /// While an attempt runs elsewhere every event since its window is remembered for the catch-up, up to this
+  /// many (3.2 MB; 0.2 s at 1 Mev/s): a longer attempt catches up over the newest.
+  static constexpr std::size_t kCatchUpMaxEvents = 200'000;
+  /// At most this many tracking updates catch up an attempt (~1 ms each; on the worker when the caller uses
+  /// advance_initialisation, else on the window that applies it).
+  static constexpr std::int64_t kCatchUpMaxSlices = 8;
 
   [[nodiscard]] TrackStatus status() const noexcept { return status_; }
   [[nodiscard]] const EstimatorCounters& counters() const noexcept { return counters_; }
@@ -137,30 +158,41 @@ class PoseEstimator {
   std::optional<InitJob> make_job(EventSpan window, std::int64_t t_end_us, PoseEstimate& skipped);
   [[nodiscard]] PoseEstimate held_estimate(EventSpan window, std::int64_t t_end_us) const;
   PoseEstimate apply_initialisation(const InitOutcome& outcome, PoseEstimate out);
+  /// The track between windows: what one tracking update reads and writes.
+  struct TrackState {
+    std::optional<camera::StampedPose> last;      ///< last good pose
+    std::optional<camera::StampedPose> previous;  ///< the one before (for constant velocity)
+    int unhealthy_in_a_row{0};
+    bool lost{false};  ///< lost_after_windows unhealthy updates in a row
+  };
   /// history: the remembered events up to this window (recent_, or a prefix of it when catching up).
   PoseEstimate track(EventSpan window, std::int64_t t_end_us, EventSpan history);
+  /// One tracking update of `state` (const: also run on the worker by advance_initialisation).
+  PoseEstimate track_step(TrackState& state, EventSpan window, std::int64_t t_end_us, EventSpan history,
+                          std::uint64_t& unhealthy) const;
+  /// The catch-up slices after a found pose at from_us, up to the window at to_us, over `events` (the
+  /// remembered events). Returns the slices tracked; stops when the state is lost.
+  int catch_up(TrackState& state, std::int64_t from_us, std::int64_t to_us, EventSpan events,
+               std::uint64_t& unhealthy) const;
   PoseEstimate counted(PoseEstimate out);
   void remember(EventSpan window, std::int64_t t_us);
   [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const;
-  [[nodiscard]] camera::Pose predict(std::int64_t t_end_us) const;
+  [[nodiscard]] camera::Pose predict(const TrackState& state, std::int64_t t_end_us) const;
   void set_status(TrackStatus s);
 
   camera::CameraModel camera_;
+  /// The camera's undistortion table, built with the estimator (at start-up) and only read after: the tracking
+  /// updates on the pose thread and on an initialisation worker share it (the camera overload of track_window
+  /// would build one per thread on its first call: ~10 ms on the window that first tracks).
+  UndistortMap map_;
   camera::LineModel model_;
   std::optional<camera::PosePrior> prior_;
   EstimatorOptions options_;
   TrackStatus status_{TrackStatus::initialising};
-  std::optional<camera::StampedPose> last_;      ///< last good pose
-  std::optional<camera::StampedPose> previous_;  ///< the one before (for constant velocity)
-  std::vector<Event> recent_;                    ///< the newest events (init_accumulate_us, at most a few thousand)
-  int unhealthy_in_a_row_{0};
+  TrackState track_;
+  std::vector<Event> recent_;  ///< the newest events (init_accumulate_us, at most a few thousand)
   std::uint64_t generation_{0};
   std::optional<std::int64_t> attempt_t_us_;  ///< an attempt prepared and not completed: its window's time
-  /// While an attempt runs elsewhere every event since its window is remembered for the catch-up, up to this
-  /// many (3.2 MB; 0.2 s at 1 Mev/s): a longer attempt catches up over the newest.
-  static constexpr std::size_t kCatchUpMaxEvents = 200'000;
-  /// At most this many tracking updates catch up an attempt (~1 ms each, on the window that applies it).
-  static constexpr std::int64_t kCatchUpMaxSlices = 8;
   EstimatorCounters counters_;
 };
 
