@@ -93,13 +93,23 @@ namespace {
 // tasks have returned.
 class Judge {
  public:
-  /// One task's fitting state (lanes of pending fits, its own lazily filled rank table, counters).
+  /// One event's result, kept by its task until the tasks have returned.
+  struct Judged {
+    std::size_t slot;
+    std::int32_t rho;
+    CurvatureStatus status;
+    double curvature;
+  };
+  /// One task's fitting state (lanes of pending fits, its own lazily filled rank table, counters) and results.
+  /// Results are written to the block's per-slot arrays only by gather(), on one thread: slots are in time order
+  /// and bands are spatial, so tasks writing the arrays directly would share every cache line.
   struct Fitter {
     explicit Fitter(const Sphere& sphere) : table(sphere), batch(sphere) {}
     SingularMaskTable table;
     QuadricBatch batch;
     int lanes = 0;
-    std::size_t lane_slot[QuadricBatch::kLanes] = {};
+    std::size_t lane_slot[QuadricBatch::kLanes] = {};  // positions in `judged`
+    std::vector<Judged> judged;
     std::int64_t density_passed = 0, undefined = 0, failed = 0;
   };
 
@@ -114,7 +124,11 @@ class Judge {
     rate_.reset();
     prev_region_ = {};
     have_prev_ = false;
-    for (auto& f : fitters_) f.lanes = 0, f.density_passed = f.undefined = f.failed = 0;
+    for (auto& f : fitters_) {
+      f.lanes = 0;
+      f.judged.clear();
+      f.density_passed = f.undefined = f.failed = 0;
+    }
     dropped_ = blocks_ = 0;
     started_ = false;
   }
@@ -129,6 +143,10 @@ class Judge {
 
   void begin_block(std::int64_t block, std::size_t n) {
     block_ = block;
+    for (auto& f : fitters_) {  // nothing is pending between blocks, unless a task threw in the last one
+      f.lanes = 0;
+      f.judged.clear();
+    }
     rho_.assign(n, 0);
     status_.assign(n, CurvatureStatus::outside);
     curv_.assign(n, 0.0);
@@ -184,36 +202,44 @@ class Judge {
   void add(int task, std::size_t slot, std::int64_t threshold, std::int32_t rho, std::uint64_t mask,
            const std::int32_t* counts, const double* sums) {
     Fitter& f = fitters_[static_cast<std::size_t>(task)];
-    rho_[slot] = rho;
     if (trace_ != nullptr && trace_->with_sites) {
       std::copy_n(counts, sites_, site_counts_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
       for (int s = 0; s < sites_; ++s) site_sums_[slot * sites_ + s] = static_cast<std::int64_t>(sums[s]);
     }
+    Judged& r = f.judged.emplace_back(Judged{slot, rho, CurvatureStatus::density_fail, 0.0});
     if (rho < threshold) {
-      status_[slot] = CurvatureStatus::density_fail;
       ++f.failed;
       return;
     }
     ++f.density_passed;
     if (!o_.curvature) {
-      status_[slot] = CurvatureStatus::density_only;
+      r.status = CurvatureStatus::density_only;
       return;
     }
     if (!f.table.full_rank(mask)) {
-      status_[slot] = CurvatureStatus::undefined;
+      r.status = CurvatureStatus::undefined;
       ++f.undefined;
       return;
     }
-    status_[slot] = CurvatureStatus::selected;  // fitted; the selection may still drop it
+    r.status = CurvatureStatus::selected;  // fitted; the selection may still drop it
     f.batch.set(f.lanes, counts, sums);
-    f.lane_slot[f.lanes++] = slot;
+    f.lane_slot[f.lanes++] = f.judged.size() - 1;
     if (f.lanes == QuadricBatch::kLanes) flush(f);
   }
 
   /// Solves what task `task` has pending (its thread).
   void flush(int task) { flush(fitters_[static_cast<std::size_t>(task)]); }
+  /// Solves what is pending and writes every task's results to the block's arrays (one thread, after the tasks).
   void flush() {
-    for (auto& f : fitters_) flush(f);
+    for (auto& f : fitters_) {
+      flush(f);
+      for (const Judged& r : f.judged) {
+        rho_[r.slot] = r.rho;
+        status_[r.slot] = r.status;
+        curv_[r.slot] = r.curvature;
+      }
+      f.judged.clear();
+    }
   }
 
   void flush(Fitter& f) {
@@ -222,10 +248,11 @@ class Judge {
     bool ok[QuadricBatch::kLanes];
     f.batch.solve(f.lanes, c, ok);
     for (int l = 0; l < f.lanes; ++l) {
+      Judged& r = f.judged[f.lane_slot[l]];
       if (ok[l]) {
-        curv_[f.lane_slot[l]] = c[l];
+        r.curvature = c[l];
       } else {
-        status_[f.lane_slot[l]] = CurvatureStatus::undefined;
+        r.status = CurvatureStatus::undefined;
         ++f.undefined;
       }
     }
