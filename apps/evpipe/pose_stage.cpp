@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <limits>
 
 #include "evpipe/camera/error.hpp"
@@ -98,16 +99,17 @@ pose::PoseEstimate PoseStage::estimate(EventSpan events, std::int64_t t_us, doub
 
 void PoseStage::feed(EventSpan events, std::int64_t t_us) {
   const std::lock_guard lock(feed_.mutex);
-  // Windows may overlap (hop < length): only events newer than those already fed.
+  // Windows may overlap (hop < length): only events newer than those already fed (the bound is read once: a
+  // window holds many events of one microsecond, and windows never split a microsecond).
+  const std::int64_t newest = feed_.newest_t_us;
   for (const Event& e : events) {
-    if (e.t_us <= feed_.newest_t_us) continue;
-    feed_.events.push_back(e);
-    feed_.newest_t_us = e.t_us;
+    if (e.t_us > newest) feed_.events.push_back(e);
   }
+  if (!feed_.events.empty()) feed_.newest_t_us = std::max(newest, feed_.events.back().t_us);
   feed_.window_t_us = t_us;
   // Bounded like the estimator's own memory of an attempt's windows: a longer attempt catches up over the newest.
   const std::size_t cap = pose::PoseEstimator::kCatchUpMaxEvents;
-  if (feed_.events.size() > 2 * cap) {
+  if (feed_.events.size() > cap) {
     feed_.events.erase(feed_.events.begin(), feed_.events.end() - static_cast<std::ptrdiff_t>(cap));
   }
 }

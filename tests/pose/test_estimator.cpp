@@ -275,8 +275,9 @@ TEST(PoseEstimator, CatchUpOnTheWorkerEqualsTheCatchUpOnThePoseThread) {
     const auto w = s.window(t0, t0 + kWindow_us);
     a.initialising_window(w, t0 + kWindow_us);
     b.initialising_window(w, t0 + kWindow_us);
+    const std::int64_t newest = fed.back().t_us;  // as PoseStage feeds: every event newer than those fed
     for (const Event& e : w)
-      if (e.t_us > fed.back().t_us) fed.push_back(e);
+      if (e.t_us > newest) fed.push_back(e);
     fed_t_us = t0 + kWindow_us;
   }
   const pose::InitOutcome advanced = b.advance_initialisation(outcome, fed, fed_t_us);

@@ -89,8 +89,8 @@ namespace {
 // (only the period of the adaptive estimator needs time order, and queries never straddle a period).
 //
 // The fits of one block may run as several tasks at once (CurvatureFilter::set_parallelism): each task has its own
-// Fitter and writes only the slots of its own events; the counters are summed and the selection runs once the
-// tasks have returned.
+// Fitter, which keeps its events' results until flush() writes them to the block's arrays after the tasks have
+// returned; the counters are summed and the selection runs then.
 class Judge {
  public:
   /// One event's result, kept by its task until the tasks have returned.
@@ -101,7 +101,7 @@ class Judge {
     double curvature;
   };
   /// One task's fitting state (lanes of pending fits, its own lazily filled rank table, counters) and results.
-  /// Results are written to the block's per-slot arrays only by gather(), on one thread: slots are in time order
+  /// Results are written to the block's per-slot arrays only by flush(), on one thread: slots are in time order
   /// and bands are spatial, so tasks writing the arrays directly would share every cache line.
   struct Fitter {
     explicit Fitter(const Sphere& sphere) : table(sphere), batch(sphere) {}

@@ -132,8 +132,9 @@ class PoseEstimator {
   [[nodiscard]] InitOutcome run_initialisation(const InitJob& job) const;
   /// On the worker, after run_initialisation(): tracks the windows that passed during the attempt, so that the
   /// window applying the outcome has (almost) nothing left to catch up and is not late. `events`: every event
-  /// from the attempt's window on (time-ordered; the job's events first), up to the window at `t_now_us`. Same
-  /// slices, same updates as complete_initialisation() would run over them. Const, like run_initialisation.
+  /// from the attempt's window on (time-ordered; the job's events first), up to the window at `t_now_us`. The
+  /// slices complete_initialisation() would track (their stride is set by the span up to t_now_us, and a sparse
+  /// slice's history starts at the job's events). Const, like run_initialisation.
   /// Returns the outcome unchanged when it failed or when the track is lost on the way (complete_initialisation
   /// then catches up as before and reports the loss).
   [[nodiscard]] InitOutcome advance_initialisation(const InitOutcome& outcome, EventSpan events,
