@@ -89,20 +89,23 @@ namespace {
 // (only the period of the adaptive estimator needs time order, and queries never straddle a period).
 //
 // The fits of one block may run as several tasks at once (CurvatureFilter::set_parallelism): each task has its own
-// Fitter, which keeps its events' results until flush() writes them to the block's arrays after the tasks have
-// returned; the counters are summed and the selection runs then.
+// Fitter, which writes its events' results to their slots of the block's arrays in chunks (write_out); the counters
+// are summed and the selection runs once the tasks have returned.
 class Judge {
  public:
-  /// One event's result, kept by its task until the tasks have returned.
+  /// One event's result, kept by its task and written to the block's arrays a chunk at a time.
   struct Judged {
-    std::size_t slot;
+    std::uint32_t slot;
     std::int32_t rho;
     CurvatureStatus status;
     double curvature;
   };
   /// One task's fitting state (lanes of pending fits, its own lazily filled rank table, counters) and results.
-  /// Results are written to the block's per-slot arrays only by flush(), on one thread: slots are in time order
-  /// and bands are spatial, so tasks writing the arrays directly would share every cache line.
+  /// Queries come pixel by pixel but slots are in time order: writing each result into the block's arrays as it
+  /// comes is a random write over the whole block, interleaved with the queries (and, with tasks, every cache
+  /// line is shared). Results are kept in the task's list and written in tight passes of kJudgedChunk, which
+  /// also bounds the list's memory.
+  static constexpr std::size_t kJudgedChunk = 65536;  // 1.5 MB a task
   struct Fitter {
     explicit Fitter(const Sphere& sphere) : table(sphere), batch(sphere) {}
     SingularMaskTable table;
@@ -142,6 +145,7 @@ class Judge {
   }
 
   void begin_block(std::int64_t block, std::size_t n) {
+    if (n > std::numeric_limits<std::uint32_t>::max()) throw std::length_error("curvature: block of > 2^32 events");
     block_ = block;
     for (auto& f : fitters_) {  // nothing is pending between blocks, unless a task threw in the last one
       f.lanes = 0;
@@ -206,22 +210,27 @@ class Judge {
       std::copy_n(counts, sites_, site_counts_.begin() + static_cast<std::ptrdiff_t>(slot * sites_));
       for (int s = 0; s < sites_; ++s) site_sums_[slot * sites_ + s] = static_cast<std::int64_t>(sums[s]);
     }
-    Judged& r = f.judged.emplace_back(Judged{slot, rho, CurvatureStatus::density_fail, 0.0});
+    if (f.judged.size() >= kJudgedChunk) {  // (rarely) solves a part-filled batch first: lanes point into judged
+      flush(f);
+      write_out(f);
+    }
+    CurvatureStatus& status =
+        f.judged.emplace_back(Judged{static_cast<std::uint32_t>(slot), rho, CurvatureStatus::density_fail, 0.0}).status;
     if (rho < threshold) {
       ++f.failed;
       return;
     }
     ++f.density_passed;
     if (!o_.curvature) {
-      r.status = CurvatureStatus::density_only;
+      status = CurvatureStatus::density_only;
       return;
     }
     if (!f.table.full_rank(mask)) {
-      r.status = CurvatureStatus::undefined;
+      status = CurvatureStatus::undefined;
       ++f.undefined;
       return;
     }
-    r.status = CurvatureStatus::selected;  // fitted; the selection may still drop it
+    status = CurvatureStatus::selected;  // fitted; the selection may still drop it
     f.batch.set(f.lanes, counts, sums);
     f.lane_slot[f.lanes++] = f.judged.size() - 1;
     if (f.lanes == QuadricBatch::kLanes) flush(f);
@@ -229,17 +238,23 @@ class Judge {
 
   /// Solves what task `task` has pending (its thread).
   void flush(int task) { flush(fitters_[static_cast<std::size_t>(task)]); }
-  /// Solves what is pending and writes every task's results to the block's arrays (one thread, after the tasks).
+  /// Solves what is pending and writes every task's results to the block's arrays (after the tasks).
   void flush() {
     for (auto& f : fitters_) {
       flush(f);
-      for (const Judged& r : f.judged) {
-        rho_[r.slot] = r.rho;
-        status_[r.slot] = r.status;
-        curv_[r.slot] = r.curvature;
-      }
-      f.judged.clear();
+      write_out(f);
     }
+  }
+
+  /// A task's solved results to the block's arrays, in one tight pass (its own slots only; several tasks may do
+  /// this at once: the slots are disjoint).
+  void write_out(Fitter& f) {
+    for (const Judged& r : f.judged) {
+      rho_[r.slot] = r.rho;
+      status_[r.slot] = r.status;
+      curv_[r.slot] = r.curvature;
+    }
+    f.judged.clear();
   }
 
   void flush(Fitter& f) {
@@ -248,11 +263,10 @@ class Judge {
     bool ok[QuadricBatch::kLanes];
     f.batch.solve(f.lanes, c, ok);
     for (int l = 0; l < f.lanes; ++l) {
-      Judged& r = f.judged[f.lane_slot[l]];
       if (ok[l]) {
-        r.curvature = c[l];
+        f.judged[f.lane_slot[l]].curvature = c[l];
       } else {
-        r.status = CurvatureStatus::undefined;
+        f.judged[f.lane_slot[l]].status = CurvatureStatus::undefined;
         ++f.undefined;
       }
     }
