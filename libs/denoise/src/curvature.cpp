@@ -116,11 +116,12 @@ class Judge {
     std::int64_t density_passed = 0, undefined = 0, failed = 0;
   };
 
-  Judge(const CurvatureOptions& o, const Sphere& sphere, const SensorGeometry& g, int tasks = 1)
+  /// One task (set_tasks() adds more).
+  Judge(const CurvatureOptions& o, const Sphere& sphere, const SensorGeometry& g)
       : o_(o),
         sites_(sphere.size()),
         rate_(o.adaptive ? make_exposure_model(sphere, o.mode, o.window_us, g) : ExposureModel{}, o) {
-    for (int k = 0; k < std::max(tasks, 1); ++k) fitters_.emplace_back(sphere);
+    fitters_.emplace_back(sphere);
   }
 
   void reset() {
@@ -182,7 +183,6 @@ class Judge {
       f.failed = 0;
     }
   }
-  [[nodiscard]] int tasks() const noexcept { return static_cast<int>(fitters_.size()); }
   /// Between blocks: `n` Fitters from now on (the counters of removed ones are kept).
   void set_tasks(int n, const Sphere& sphere) {
     flush();

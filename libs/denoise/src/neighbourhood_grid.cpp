@@ -25,10 +25,10 @@ GridBlockIndex::GridBlockIndex(const Sphere& sphere, const SensorGeometry& geome
   touched_bits_.assign((pixels + 63) / 64, 0);
 }
 
-void GridBlockIndex::build(EventSpan events, int query_y_lo, int query_y_hi) {
+void GridBlockIndex::build(EventSpan events) {
   use_subset_ = false;
   subset_ = {};
-  build_from(events, query_y_lo, query_y_hi);
+  build_from(events, 0, geometry_.height);
 }
 
 void GridBlockIndex::build(EventSpan events, std::span<const std::uint32_t> subset, int query_y_lo, int query_y_hi) {

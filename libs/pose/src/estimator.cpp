@@ -169,7 +169,7 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
   ++counters_.init_successes;
   // Carried over the attempt's windows on the worker (advance_initialisation): the pose before, for constant
   // velocity, and the updates it ran.
-  track_ = TrackState{camera::StampedPose{outcome.t_us, u.T_cam_model}, outcome.previous, 0, false};
+  track_ = start_state(outcome);
   counters_.unhealthy_updates += outcome.caught_up_unhealthy;
   set_status(TrackStatus::tracking);
   out.status = status_;
@@ -303,6 +303,10 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
   return out;
 }
 
+PoseEstimator::TrackState PoseEstimator::start_state(const InitOutcome& outcome) {
+  return TrackState{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model}, outcome.previous, 0, false};
+}
+
 int PoseEstimator::catch_up(TrackState& state, std::int64_t from_us, std::int64_t to_us, EventSpan events,
                             std::uint64_t& unhealthy) const {
   // Found on an earlier window: the track starts there. The target moved while the attempt ran, so the windows
@@ -328,7 +332,7 @@ int PoseEstimator::catch_up(TrackState& state, std::int64_t from_us, std::int64_
 InitOutcome PoseEstimator::advance_initialisation(const InitOutcome& outcome, EventSpan events,
                                                   std::int64_t t_now_us) const {
   if (!outcome.ok) return outcome;
-  TrackState state{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model}, outcome.previous, 0, false};
+  TrackState state = start_state(outcome);
   std::uint64_t unhealthy = 0;
   const int slices = catch_up(state, outcome.t_us, t_now_us, events, unhealthy);
   // Handed over only from a healthy last slice: the pose thread resumes from exactly that state.

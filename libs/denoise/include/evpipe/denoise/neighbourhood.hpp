@@ -32,15 +32,13 @@ class GridBlockIndex {
  public:
   GridBlockIndex(const Sphere& sphere, const SensorGeometry& geometry);
 
-  /// Indexes `events` (time-ordered, spanning less than 2²⁹ µs); events outside the sensor are skipped. Only the
-  /// events of rows [query_y_lo, query_y_hi) will be queried; the index then holds only the rows their balls reach,
-  /// so that disjoint row bands of one block can be indexed and queried by separate instances at the same time.
-  void build(EventSpan events, int query_y_lo = std::numeric_limits<int>::min(),
-             int query_y_hi = std::numeric_limits<int>::max());
-  /// As build(), but only the events at the positions `subset` (increasing; it must hold every event of the
-  /// rows [query_y_lo − extent, query_y_hi + extent) and may hold others) are looked at, by build() and by
-  /// query(): a caller that has sorted a block into row bands once hands each band its own share instead of
-  /// having every band scan the whole block. `subset` must stay valid until the next build().
+  /// Indexes `events` (time-ordered, spanning less than 2²⁹ µs); events outside the sensor are skipped.
+  void build(EventSpan events);
+  /// One row band of `events`: only the events of rows [query_y_lo, query_y_hi) will be queried, and only the
+  /// events at the positions `subset` (increasing; it must hold every event of the rows the band's balls reach,
+  /// [query_y_lo − extent, query_y_hi + extent), and may hold others) are looked at, by build() and query().
+  /// Disjoint bands of one block can so be indexed and queried by separate instances at the same time, each
+  /// seeing only its share. `subset` must stay valid until the next build().
   void build(EventSpan events, std::span<const std::uint32_t> subset, int query_y_lo, int query_y_hi);
 
   /// For each event events[i], i in [first, last), inside the sensor and the rows given to build(), calls

@@ -168,6 +168,8 @@ class PoseEstimator {
   };
   /// history: the remembered events up to this window (recent_, or a prefix of it when catching up).
   PoseEstimate track(EventSpan window, std::int64_t t_end_us, EventSpan history);
+  /// The track a successful outcome starts: its pose at its time, and the pose before when it was advanced.
+  static TrackState start_state(const InitOutcome& outcome);
   /// One tracking update of `state` (const: also run on the worker by advance_initialisation).
   PoseEstimate track_step(TrackState& state, EventSpan window, std::int64_t t_end_us, EventSpan history,
                           std::uint64_t& unhealthy) const;
