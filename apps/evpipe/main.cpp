@@ -231,6 +231,7 @@ int run(const Cli& cli) {
   po.window_us = cfg.window.length_us;
   po.hop_us = cfg.window.hop_us;
   po.batch_queue_capacity = static_cast<std::size_t>(cfg.pipeline.source_queue_packets);
+  po.batch_queue_events = static_cast<std::size_t>(cfg.pipeline.source_queue_events);
   po.window_queue_capacity = static_cast<std::size_t>(cfg.pipeline.pose_queue_windows);
   po.pose_queue_capacity = static_cast<std::size_t>(cfg.pipeline.publish_queue);
   po.stats_period = std::chrono::milliseconds(cfg.lcm.stats_period_ms);

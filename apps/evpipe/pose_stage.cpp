@@ -102,16 +102,23 @@ void PoseStage::feed(EventSpan events, std::int64_t t_us) {
   // Windows may overlap (hop < length): only events newer than those already fed (the bound is read once: a
   // window holds many events of one microsecond, and windows never split a microsecond).
   const std::int64_t newest = feed_.newest_t_us;
-  for (const Event& e : events) {
-    if (e.t_us > newest) feed_.events.push_back(e);
-  }
-  if (!feed_.events.empty()) feed_.newest_t_us = std::max(newest, feed_.events.back().t_us);
+  const auto fresh_from =
+      std::upper_bound(events.begin(), events.end(), newest, [](std::int64_t t, const Event& e) { return t < e.t_us; });
+  auto fresh = EventSpan(fresh_from, events.end());
+  if (!fresh.empty()) feed_.newest_t_us = std::max(newest, fresh.back().t_us);
   feed_.window_t_us = t_us;
   // Bounded like the estimator's own memory of an attempt's windows: a longer attempt catches up over the newest.
+  // Trimmed before appending, so that the buffer never grows past the bound (at 12 Mev/s a window is ~350 000
+  // events).
   const std::size_t cap = pose::PoseEstimator::kCatchUpMaxEvents;
-  if (feed_.events.size() > cap) {
-    feed_.events.erase(feed_.events.begin(), feed_.events.end() - static_cast<std::ptrdiff_t>(cap));
+  if (fresh.size() >= cap) {
+    feed_.events.clear();
+    fresh = fresh.last(cap);
+  } else if (feed_.events.size() + fresh.size() > cap) {
+    feed_.events.erase(feed_.events.begin(),
+                       feed_.events.begin() + static_cast<std::ptrdiff_t>(feed_.events.size() + fresh.size() - cap));
   }
+  feed_.events.insert(feed_.events.end(), fresh.begin(), fresh.end());
 }
 
 pose::InitOutcome PoseStage::run_attempt(const pose::InitJob& job) {  // on the worker

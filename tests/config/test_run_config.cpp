@@ -81,13 +81,14 @@ TEST(RunConfig, MissingFile) {
 TEST(RunConfig, LcmPipelineAndPoseSections) {
   const auto c = parse_config(
       "lcm: {url: 'memq://', pose_channel: P, stats_channel: S, stats_period_ms: 200, enabled: false}\n"
-      "pipeline: {source_queue_packets: 8, pose_queue_windows: 1, publish_queue: 4}\n"
+      "pipeline: {source_queue_packets: 8, source_queue_events: 50000, pose_queue_windows: 1, publish_queue: 4}\n"
       "pose: {ground_truth: gt.csv, lost_after_windows: 5, init_worker: off, init_worker_nice: 3}\n");
   EXPECT_EQ(c.lcm.url, "memq://");
   EXPECT_EQ(c.lcm.pose_channel, "P");
   EXPECT_EQ(c.lcm.stats_period_ms, 200);
   EXPECT_FALSE(c.lcm.enabled);
   EXPECT_EQ(c.pipeline.source_queue_packets, 8);
+  EXPECT_EQ(c.pipeline.source_queue_events, 50000);
   EXPECT_EQ(c.pipeline.pose_queue_windows, 1);
   EXPECT_EQ(c.pose.ground_truth, "gt.csv");
   EXPECT_EQ(c.pose.lost_after_windows, 5);
@@ -98,6 +99,8 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
             std::string::npos);
   EXPECT_NE(error_of("lcm: {pose_channel: ''}").find("lcm.pose_channel: must not be empty"), std::string::npos);
   EXPECT_NE(error_of("pipeline: {source_queue_packets: 1}").find("pipeline.source_queue_packets"), std::string::npos);
+  EXPECT_NE(error_of("pipeline: {source_queue_events: 10}").find("pipeline.source_queue_events: must be in [1000, "),
+            std::string::npos);
   EXPECT_NE(error_of("pose: {lost_after_windows: 0}").find("pose.lost_after_windows: must be >= 1"), std::string::npos);
   EXPECT_NE(
       error_of("pose: {init_worker: sometimes}").find("pose.init_worker: must be auto, on or off, got 'sometimes'"),

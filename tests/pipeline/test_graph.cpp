@@ -360,6 +360,7 @@ TEST(PipelineGraph, LiveOverloadDropsAndCountsButStaysBounded) {
   o.window_us = 2'000;
   o.hop_us = 1'000;
   o.batch_queue_capacity = 8;
+  o.batch_queue_events = 3'000;  // three of these 1000-event packets: the event bound binds before the count
   o.pose_queue_capacity = 4;
   Pipeline p(std::make_unique<VectorSource>(batches), filter_for("baf", kDavis346), processor, sink, o);
   ASSERT_FALSE(p.run());
@@ -368,6 +369,10 @@ TEST(PipelineGraph, LiveOverloadDropsAndCountsButStaysBounded) {
   const auto& batches_q = s.queues[0];
   const auto& windows_q = s.queues[1];
   EXPECT_EQ(batches_q.policy, QueuePolicy::drop_newest);
+  EXPECT_EQ(batches_q.weight_budget, 3'000u);
+  EXPECT_LE(batches_q.weight_high_water, 3'000u);
+  EXPECT_LE(batches_q.high_water, 3u);
+  EXPECT_GT(batches_q.dropped, 0u);
   EXPECT_EQ(windows_q.policy, QueuePolicy::latest_wins);
   EXPECT_EQ(windows_q.capacity, 1u);
   EXPECT_GT(windows_q.dropped, 0u);  // stale windows were replaced by fresher ones

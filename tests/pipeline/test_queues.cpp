@@ -237,6 +237,109 @@ TEST(NamedQueue, ClosedWakesASleepingConsumer) {
   EXPECT_EQ(r, PopResult::closed);
 }
 
+// ---- weight budget (the source queue weighs a packet by its events) ----
+
+std::uint64_t weight_of(const int& v) {
+  return static_cast<std::uint64_t>(v);
+}
+
+TEST(NamedQueue, WeightBudgetDropsWhatDoesNotFitButNotIntoAnEmptyQueue) {
+  NamedQueue<int> q("live", 8, QueuePolicy::drop_newest);
+  q.set_weight_budget(10, weight_of);
+  EXPECT_EQ(q.push(4), PushResult::pushed);
+  EXPECT_EQ(q.push(5), PushResult::pushed);   // 9 queued
+  EXPECT_EQ(q.push(2), PushResult::dropped);  // 11 > 10: counts as full although the ring has room
+  EXPECT_EQ(q.push(1), PushResult::pushed);   // exactly the budget
+  auto s = q.stats();
+  EXPECT_EQ(s.weight_budget, 10u);
+  EXPECT_EQ(s.weight_fill, 10u);
+  EXPECT_EQ(s.weight_high_water, 10u);
+  expect_stats(s, 4, 0, 1, 3, 3);
+  int v = 0;
+  ASSERT_EQ(q.pop(v, 0ms), PopResult::item);
+  EXPECT_EQ(v, 4);
+  EXPECT_EQ(q.stats().weight_fill, 6u);
+  EXPECT_EQ(q.push(4), PushResult::pushed);
+  for (int want : {5, 1, 4}) {
+    ASSERT_EQ(q.pop(v, 0ms), PopResult::item);
+    EXPECT_EQ(v, want);
+  }
+  EXPECT_EQ(q.stats().weight_fill, 0u);
+  // A single item larger than the whole budget passes into an empty queue (it could never fit otherwise), and then
+  // nothing joins it.
+  EXPECT_EQ(q.push(50), PushResult::pushed);
+  EXPECT_EQ(q.push(1), PushResult::dropped);
+  s = q.stats();
+  EXPECT_EQ(s.weight_fill, 50u);
+  EXPECT_EQ(s.weight_high_water, 50u);
+  expect_stats(s, 7, 4, 2, 1, 3);
+}
+
+TEST(NamedQueue, WeightBudgetMakesABlockingPushWait) {
+  NamedQueue<int> q("replay", 8, QueuePolicy::block);
+  q.set_weight_budget(10, weight_of);
+  ASSERT_EQ(q.push(6), PushResult::pushed);
+  std::atomic<bool> returned{false};
+  PushResult second = PushResult::dropped;
+  std::thread producer([&] {
+    second = q.push(6);
+    returned = true;
+  });
+  std::this_thread::sleep_for(50ms);
+  EXPECT_FALSE(returned.load());  // the ring has room, the budget has not: lossless, so it waits
+  int v = 0;
+  ASSERT_EQ(q.pop(v, 0ms), PopResult::item);
+  producer.join();
+  EXPECT_EQ(second, PushResult::pushed);
+  ASSERT_EQ(q.pop(v, 1s), PopResult::item);
+  EXPECT_EQ(v, 6);
+  const auto s = q.stats();
+  expect_stats(s, 2, 2, 0, 0, 1);
+  EXPECT_EQ(s.weight_fill, 0u);
+  EXPECT_EQ(s.weight_high_water, 6u);
+}
+
+TEST(NamedQueue, WeightBudgetHoldsBetweenTwoThreadsAndDiscardAccountsForTheRest) {
+  for (const QueuePolicy policy : {QueuePolicy::block, QueuePolicy::drop_newest}) {
+    SCOPED_TRACE(std::string(policy_name(policy)));
+    constexpr int kItems = 50'000;
+    NamedQueue<int> q("stress", 64, policy);
+    q.set_weight_budget(100, weight_of);
+    std::thread producer([&] {
+      for (int i = 0; i < kItems; ++i) q.push(1 + i % 37);
+      q.close();
+    });
+    std::uint64_t got = 0;
+    std::uint64_t violations = 0;
+    int v = 0;
+    for (;;) {
+      const auto s = q.stats();
+      if (s.weight_fill > 100) ++violations;
+      const auto r = q.pop(v, 50ms);
+      if (r == PopResult::closed) break;
+      if (r == PopResult::item) ++got;
+    }
+    producer.join();
+    const auto s = q.stats();
+    EXPECT_EQ(violations, 0u);
+    EXPECT_LE(s.weight_high_water, 100u);
+    EXPECT_EQ(s.weight_fill, 0u);
+    EXPECT_EQ(s.pushed, s.popped + s.dropped);
+    EXPECT_EQ(s.popped, got);
+    if (policy == QueuePolicy::block) {
+      EXPECT_EQ(got, static_cast<std::uint64_t>(kItems));
+    }
+  }
+  NamedQueue<int> q("left", 8, QueuePolicy::block);
+  q.set_weight_budget(100, weight_of);
+  q.push(30);
+  q.push(40);
+  q.discard_queued();
+  EXPECT_EQ(q.stats().weight_fill, 0u);
+  NamedQueue<int> hand_off("hand-off", 1, QueuePolicy::latest_wins);
+  EXPECT_THROW(hand_off.set_weight_budget(10, weight_of), std::invalid_argument);
+}
+
 // Two threads through each policy: order preserved, nothing duplicated, counters add up exactly.
 void two_thread_policy(QueuePolicy policy, std::size_t capacity) {
   constexpr int kItems = 100'000;

@@ -200,6 +200,15 @@ TEST(Association, GridEqualsTheExhaustiveLoop) {
 
 namespace {
 
+// Under the sanitizers (CI's ASan+UBSan build, -O0) a sweep runs the first seed of each scene only: that covers every
+// code path the full sweep takes at a third of the time (the 5 cm sweep took ~100 s there). The convergence counts
+// below are the seeds' measured quality and are checked in the optimised builds, which run all seeds.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr bool kAllSeeds = false;
+#else
+constexpr bool kAllSeeds = true;
+#endif
+
 // Runs the tracker on every scene (2 targets x 0.6/0.8/1.0 m x 3 seeds x {no noise, 5 Hz/px BA noise raw, the
 // same noisy window through evpipe's curvature filter}) from the truth perturbed by offset_m / offset_deg; prints
 // every result and returns the number converged per input (rotation < 1 deg and translation < 10 mm from the
@@ -219,7 +228,7 @@ Tally run_scenes(double offset_m, double offset_deg, const pose::TrackerOptions&
     for (const double distance : {0.6, 0.8, 1.0}) {
       for (const int input : {0, 1, 2}) {
         const int noisy = input > 0 ? 1 : 0;
-        for (std::uint64_t k = 0; k < 3; ++k) {
+        for (std::uint64_t k = 0; k < (kAllSeeds ? 3U : 1U); ++k) {
           const std::uint64_t seed = 1000 + 97 * k + static_cast<std::uint64_t>(distance * 10) + 5 * noisy;
           Window w = make_window(cam, model, distance, noisy ? 5.0 : 0.0, seed);
           if (input == 2) {
@@ -276,18 +285,23 @@ TEST(Tracker, ConvergesFromFiveCmTenDegrees) {
   // on the same windows through the curvature filter (13 before the S-scale's warm start) — the 4 misses are
   // sparse planar windows (< 550 events, rotation 1.7-2.1 deg off with the translation within 8 mm: the tilt is
   // weakly observable) that miss from 1 cm / 2 deg as well, and one roadheader window.
-  EXPECT_EQ(t.planar_noise_free, 9);
-  EXPECT_EQ(t.converged[0], 18);
-  EXPECT_GE(t.converged[1], 6);
-  EXPECT_GE(t.converged[2], 13);
+  EXPECT_EQ(t.converged[0], t.runs[0]);  // every noise-free scene, whichever seeds ran
+  EXPECT_EQ(t.planar_noise_free, t.runs[0] / 2);
+  if (kAllSeeds) {
+    EXPECT_EQ(t.runs[0], 18);
+    EXPECT_GE(t.converged[1], 6);
+    EXPECT_GE(t.converged[2], 13);
+  }
 }
 
 TEST(Tracker, TracksFromOneCmTwoDegrees) {
   // The tracking regime (the previous window's pose as the prediction), default options.
   const Tally t = run_scenes(0.01, 2.0, {}, "1cm/2deg");
-  EXPECT_GE(t.converged[0], 17);
-  EXPECT_GE(t.converged[1], 9);
-  EXPECT_GE(t.converged[2], 13);
+  if (kAllSeeds) {
+    EXPECT_GE(t.converged[0], 17);
+    EXPECT_GE(t.converged[1], 9);
+    EXPECT_GE(t.converged[2], 13);
+  }
 }
 
 TEST(Tracker, LopetCompatibleSwitchGivesAResult) {

@@ -164,6 +164,7 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
     } else if (section == "pipeline") {
       apply_section(node, name, section,
                     {{"source_queue_packets", i64(c.pipeline.source_queue_packets)},
+                     {"source_queue_events", i64(c.pipeline.source_queue_events)},
                      {"pose_queue_windows", i64(c.pipeline.pose_queue_windows)},
                      {"publish_queue", i64(c.pipeline.publish_queue)}});
     } else {
@@ -227,6 +228,9 @@ void RunConfig::validate() const {
         fmt::format("must be in [10, 1000] (interfaces.md: at least once a second), got {}", lcm.stats_period_ms));
   check(pipeline.source_queue_packets >= 2 && pipeline.source_queue_packets <= 65536, "pipeline.source_queue_packets",
         fmt::format("must be in [2, 65536], got {}", pipeline.source_queue_packets));
+  check(pipeline.source_queue_events >= 1000 && pipeline.source_queue_events <= 100'000'000,
+        "pipeline.source_queue_events",
+        fmt::format("must be in [1000, 100000000], got {}", pipeline.source_queue_events));
   check(pipeline.pose_queue_windows >= 1 && pipeline.pose_queue_windows <= 1024, "pipeline.pose_queue_windows",
         fmt::format("must be in [1, 1024], got {}", pipeline.pose_queue_windows));
   check(pipeline.publish_queue >= 1 && pipeline.publish_queue <= 65536, "pipeline.publish_queue",
@@ -288,6 +292,7 @@ std::string RunConfig::to_yaml() const {
   out << YAML::EndMap;
   out << YAML::Key << "pipeline" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "source_queue_packets" << YAML::Value << pipeline.source_queue_packets;
+  out << YAML::Key << "source_queue_events" << YAML::Value << pipeline.source_queue_events;
   out << YAML::Key << "pose_queue_windows" << YAML::Value << pipeline.pose_queue_windows;
   out << YAML::Key << "publish_queue" << YAML::Value << pipeline.publish_queue;
   out << YAML::EndMap;

@@ -475,7 +475,20 @@ struct CurvatureFilter::Impl {
   TaskRunner runner;
   std::vector<int> band;
   std::vector<std::uint32_t> row_count;
-  std::vector<std::vector<std::uint32_t>> band_events;  // per task: positions in the block's span
+  /// Per task: positions in the block's span. Room for the whole span, left uninitialised: a band writes only the
+  /// first entries (about its share), so the pages behind them are never touched and cost no memory.
+  struct BandEvents {
+    std::unique_ptr<std::uint32_t[]> at;
+    std::size_t room = 0;
+    std::uint32_t* reserve(std::size_t n) {
+      if (n > room) {
+        at.reset(new std::uint32_t[n]);  // NOLINT(cppcoreguidelines-owning-memory): default-initialised on purpose
+        room = n;
+      }
+      return at.get();
+    }
+  };
+  std::vector<BandEvents> band_events;
   std::unique_ptr<GridRingIndex> ring;
   std::unique_ptr<FlannBallIndex> flann;
 
@@ -556,14 +569,17 @@ struct CurvatureFilter::Impl {
         // queries then see only those.
         const int y_lo = band[b] - sphere.extent_px();
         const int y_hi = band[b + 1] + sphere.extent_px();
-        auto& mine = band_events[b];
-        mine.clear();
+        std::uint32_t* mine = band_events[b].reserve(span.size());
+        std::size_t picked = 0;
         if (band[b] < band[b + 1]) {
+          // Branch-free: a band boundary splits the rows, so a branch on y mispredicts about every other event.
+          const auto rows = static_cast<std::uint32_t>(y_hi - y_lo);
           for (std::size_t i = 0; i < span.size(); ++i) {
-            if (span[i].y >= y_lo && span[i].y < y_hi) mine.push_back(static_cast<std::uint32_t>(i));
+            mine[picked] = static_cast<std::uint32_t>(i);
+            picked += static_cast<std::uint32_t>(static_cast<int>(span[i].y) - y_lo) < rows ? 1U : 0U;
           }
         }
-        grids[b]->build(span, mine, band[b], band[b + 1]);
+        grids[b]->build(span, std::span<const std::uint32_t>(mine, picked), band[b], band[b + 1]);
       };
       const auto query = [&](int task, std::size_t a, std::size_t b, std::int64_t threshold) {
         auto sink = [&](std::size_t i, std::int64_t, std::int32_t rho, std::uint64_t mask, const std::int32_t* c,

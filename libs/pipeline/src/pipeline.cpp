@@ -234,6 +234,8 @@ struct Pipeline::Impl {
         pose_stage(processor, poses, m_pose),
         publish_stage(*this) {
     if (!source) throw std::invalid_argument("Pipeline: source is null");
+    batches.set_weight_budget(options.batch_queue_events,
+                              [](const SourcePacket& p) -> std::uint64_t { return p.batch ? p.batch->size() : 0; });
     if (filter && options.denoise_threads > 1) {
       denoise_pool = std::make_unique<TaskPool>(options.denoise_threads - 1, "denoise-");
       filter->set_parallelism(options.denoise_threads, denoise_pool->runner());

@@ -220,17 +220,26 @@ PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, 
 void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
   // Windows may overlap (hop < length): only events newer than those already held are added.
   const std::int64_t newest_held = recent_.empty() ? std::numeric_limits<std::int64_t>::min() : recent_.back().t_us;
-  for (const Event& e : window)
-    if (e.t_us > newest_held) recent_.push_back(e);
+  const auto fresh_from = std::upper_bound(window.begin(), window.end(), newest_held,
+                                           [](std::int64_t t, const Event& e) { return t < e.t_us; });
+  const EventSpan fresh(fresh_from, window.end());
   std::int64_t oldest_kept = t_us - options_.init_accumulate_us;
   std::size_t cap = std::max({options_.init_target_events, options_.track_min_events, window.size()});
   if (attempt_t_us_) {  // an attempt runs elsewhere: keep what the catch-up will track, within a bound
     oldest_kept = std::min(oldest_kept, *attempt_t_us_ - options_.track.window_us);
     cap = std::max(cap, kCatchUpMaxEvents);
   }
+  // The oldest events of held + fresh go: too old, or beyond the cap. Decided before appending, so that the
+  // buffer never holds more than it keeps (at 12 Mev/s a window is ~350 000 events: appending first made it
+  // grow to twice the cap, 16-24 MB).
+  const std::size_t held = recent_.size();
+  const std::size_t total = held + fresh.size();
+  const auto at = [&](std::size_t k) -> const Event& { return k < held ? recent_[k] : fresh[k - held]; };
   std::size_t drop = 0;
-  while (drop < recent_.size() && (recent_[drop].t_us < oldest_kept || recent_.size() - drop > cap)) ++drop;
-  recent_.erase(recent_.begin(), recent_.begin() + static_cast<std::ptrdiff_t>(drop));
+  while (drop < total && (at(drop).t_us < oldest_kept || total - drop > cap)) ++drop;
+  recent_.erase(recent_.begin(), recent_.begin() + static_cast<std::ptrdiff_t>(std::min(drop, held)));
+  recent_.insert(recent_.end(), fresh.begin() + static_cast<std::ptrdiff_t>(drop > held ? drop - held : 0),
+                 fresh.end());
 }
 
 EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const {

@@ -86,9 +86,10 @@ struct LcmConfig {
 };
 
 struct PipelineConfig {
-  std::int64_t source_queue_packets = 256;  ///< packets between the source and the denoise thread
-  std::int64_t pose_queue_windows = 2;      ///< windows waiting for the pose thread (live: the freshest win)
-  std::int64_t publish_queue = 64;          ///< poses waiting for the publish thread
+  std::int64_t source_queue_packets = 256;       ///< packets between the source and the denoise thread
+  std::int64_t source_queue_events = 1'000'000;  ///< and at most this many events in them (memory bound)
+  std::int64_t pose_queue_windows = 2;           ///< windows waiting for the pose thread (live: the freshest win)
+  std::int64_t publish_queue = 64;               ///< poses waiting for the publish thread
 };
 
 struct RunConfig {

@@ -142,6 +142,9 @@ struct PipelineOptions {
   std::int64_t window_us = 30'000;        ///< window length (config window.length_us)
   std::int64_t hop_us = 30'000;           ///< hop between window starts (config window.hop_us)
   std::size_t batch_queue_capacity = 64;  ///< source -> denoise (libcaer's default ring size)
+  /// source -> denoise: also at most this many events queued (0 = no bound). A live packet's size follows the
+  /// event rate, so the packet count alone does not bound the queue's memory (NamedQueue::set_weight_budget).
+  std::size_t batch_queue_events = 0;
   std::size_t window_queue_capacity = 4;  ///< denoise -> pose in replay (live: latest_wins, one window)
   std::size_t pose_queue_capacity = 16;   ///< pose -> publish
   std::chrono::milliseconds stats_period{1000};

@@ -14,6 +14,12 @@
 // variable are touched only when a side has to sleep: a consumer on an empty queue, a `block` producer on a full
 // one. Every wait has a timeout, so a missed wake-up costs at most that timeout, never a hang.
 //
+// An optional weight budget bounds what the items hold, not only their number (set_weight_budget): the source queue
+// weighs a packet by its events, because a live packet's size follows the event rate (libcaer hands over a container
+// every few ms, up to ~60 000 events at the DAVIS346's peak), so a packet count alone bounds nothing in bytes. An
+// item that would take the queued weight over the budget counts as not fitting, exactly like a full ring (the policy
+// decides: wait or drop), except into an empty queue: a single item larger than the budget still passes.
+//
 // Counters: pushed = every push() call (items offered), popped = items the consumer took, dropped = items that
 // never reach the consumer (the policy, or discarded by an abandoning consumer). pushed == popped + dropped + fill
 // whenever both sides are quiet.
@@ -25,6 +31,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -57,7 +64,10 @@ struct QueueStats {
   std::uint64_t popped = 0;
   std::uint64_t dropped = 0;
   std::size_t fill = 0;
-  std::size_t high_water = 0;  ///< largest fill seen right after a push
+  std::size_t high_water = 0;           ///< largest fill seen right after a push
+  std::uint64_t weight_budget = 0;      ///< 0 = none
+  std::uint64_t weight_fill = 0;        ///< queued weight (e.g. events)
+  std::uint64_t weight_high_water = 0;  ///< largest queued weight seen right after a push
 };
 
 /// Optional observer of a blocking push: bumps a stage heartbeat on every wake-up (a stage waiting on a full
@@ -103,9 +113,10 @@ class Doorbell {
   std::condition_variable cv_;
 };
 
-inline void bump(std::atomic<std::uint64_t>& counter, std::uint64_t n = 1) noexcept {
+inline void bump(std::atomic<std::uint64_t>& counter, std::uint64_t n = 1,
+                 std::memory_order order = std::memory_order_relaxed) noexcept {
   // Single writer per counter: no locked read-modify-write needed.
-  counter.store(counter.load(std::memory_order_relaxed) + n, std::memory_order_relaxed);
+  counter.store(counter.load(std::memory_order_relaxed) + n, order);
 }
 
 }  // namespace detail
@@ -129,6 +140,16 @@ class NamedQueue {
     return policy_ == QueuePolicy::latest_wins ? 1 : ring_.capacity();
   }
 
+  /// Bounds the queued weight (Σ weigh(item)) to `budget` (0 = no bound) as well as the item count. block /
+  /// drop_newest only; call before the producer and consumer start.
+  void set_weight_budget(std::uint64_t budget, std::uint64_t (*weigh)(const T&)) {
+    if (policy_ == QueuePolicy::latest_wins && budget > 0) {
+      throw std::invalid_argument("NamedQueue " + name_ + ": a weight budget needs the block or drop_newest policy");
+    }
+    weight_budget_ = weigh != nullptr ? budget : 0;
+    weigh_ = weigh;
+  }
+
   // ---- producer thread ----
 
   /// Pushes per the policy. `value` is moved from unless the result is dropped / stopped on a full queue.
@@ -140,7 +161,8 @@ class NamedQueue {
       return PushResult::dropped;
     }
     if (policy_ == QueuePolicy::latest_wins) return push_latest(std::move(value));
-    if (ring_.try_push(std::move(value))) return pushed_ok();
+    const std::uint64_t w = weight_budget_ > 0 ? weigh_(value) : 0;
+    if (fits(w) && try_push_weighed(value, w)) return pushed_ok();
     if (policy_ == QueuePolicy::drop_newest) {
       detail::bump(dropped_);
       return PushResult::dropped;
@@ -153,14 +175,14 @@ class NamedQueue {
         if (observer) observer->waited += std::chrono::steady_clock::now() - t_start;
         return PushResult::stopped;
       }
-      if (ring_.try_push(std::move(value))) {
+      if (fits(w) && try_push_weighed(value, w)) {
         if (observer) observer->waited += std::chrono::steady_clock::now() - t_start;
         return pushed_ok();
       }
       if (observer && observer->heartbeat) detail::bump(*observer->heartbeat);
       producer_bell_.wait(
-          [this] {
-            return ring_.size() < ring_.capacity() || interrupted_.load(std::memory_order_acquire) ||
+          [this, w] {
+            return (ring_.size() < ring_.capacity() && fits(w)) || interrupted_.load(std::memory_order_acquire) ||
                    abandoned_.load(std::memory_order_acquire);
           },
           wait_step);
@@ -195,6 +217,7 @@ class NamedQueue {
       }
     } else {
       got = ring_.try_pop(out);
+      if (got && weight_budget_ > 0) detail::bump(weight_out_, weigh_(out), std::memory_order_release);
     }
     if (got) {
       detail::bump(popped_);
@@ -234,6 +257,7 @@ class NamedQueue {
         got = p != nullptr;
       } else {
         got = ring_.try_pop(item);
+        if (got && weight_budget_ > 0) detail::bump(weight_out_, weigh_(item), std::memory_order_release);
       }
       if (!got) break;
       detail::bump(discarded_);
@@ -257,13 +281,44 @@ class NamedQueue {
     s.pushed = pushed_.load(std::memory_order_acquire);
     s.fill = fill();
     s.high_water = static_cast<std::size_t>(high_water_.load(std::memory_order_relaxed));
+    s.weight_budget = weight_budget_;
+    s.weight_fill = queued_weight();
+    s.weight_high_water = weight_high_water_.load(std::memory_order_relaxed);
     return s;
   }
 
  private:
+  /// Producer side: whether an item of weight w may join the queue now. The consumer only lowers the queued weight,
+  /// so a yes stays true until the push. "Empty" is judged by the weight too, not by the ring: the consumer takes
+  /// an item before it accounts for its weight, and the budget must hold for the counters as well.
+  [[nodiscard]] bool fits(std::uint64_t w) const noexcept {
+    if (weight_budget_ == 0) return true;
+    const std::uint64_t queued = queued_weight();
+    return queued + w <= weight_budget_ || queued == 0;
+  }
+  [[nodiscard]] std::uint64_t queued_weight() const noexcept {
+    // out is read first: a snapshot never shows more taken out than put in.
+    const std::uint64_t out = weight_out_.load(std::memory_order_acquire);
+    return weight_in_.load(std::memory_order_acquire) - out;
+  }
+
+  /// The weight is counted in before the item becomes visible, so that the consumer, which counts it out after
+  /// taking it, never makes the queued weight negative; taken back if the ring is full (the value is then intact).
+  bool try_push_weighed(T& value, std::uint64_t w) {
+    if (w > 0) detail::bump(weight_in_, w, std::memory_order_release);
+    if (ring_.try_push(std::move(value))) return true;
+    if (w > 0) weight_in_.store(weight_in_.load(std::memory_order_relaxed) - w, std::memory_order_release);
+    return false;
+  }
+
   PushResult pushed_ok() {
     const std::uint64_t f = ring_.size();
     if (f > high_water_.load(std::memory_order_relaxed)) high_water_.store(f, std::memory_order_relaxed);
+    if (weight_budget_ > 0) {
+      const std::uint64_t q = queued_weight();
+      if (q > weight_high_water_.load(std::memory_order_relaxed))
+        weight_high_water_.store(q, std::memory_order_relaxed);
+    }
     consumer_bell_.ring();
     return PushResult::pushed;
   }
@@ -291,8 +346,13 @@ class NamedQueue {
   std::atomic<std::uint64_t> pushed_{0};   // producer
   std::atomic<std::uint64_t> dropped_{0};  // producer
   std::atomic<std::uint64_t> high_water_{0};
+  std::uint64_t weight_budget_ = 0;  // fixed before the threads start
+  std::uint64_t (*weigh_)(const T&) = nullptr;
+  std::atomic<std::uint64_t> weight_in_{0};  // producer: Σ weight pushed
+  std::atomic<std::uint64_t> weight_high_water_{0};
   alignas(kCacheLineBytes) std::atomic<std::uint64_t> popped_{0};  // consumer
   std::atomic<std::uint64_t> discarded_{0};                        // consumer: dropped by abandon()
+  std::atomic<std::uint64_t> weight_out_{0};                       // consumer: Σ weight taken or discarded
   std::atomic<bool> closed_{false};
   std::atomic<bool> abandoned_{false};
   std::atomic<bool> interrupted_{false};
