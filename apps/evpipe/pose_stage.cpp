@@ -102,9 +102,8 @@ void PoseStage::feed(EventSpan events, std::int64_t t_us) {
   // Windows may overlap (hop < length): only events newer than those already fed (the bound is read once: a
   // window holds many events of one microsecond, and windows never split a microsecond).
   const std::int64_t newest = feed_.newest_t_us;
-  const auto fresh_from =
-      std::upper_bound(events.begin(), events.end(), newest, [](std::int64_t t, const Event& e) { return t < e.t_us; });
-  auto fresh = EventSpan(fresh_from, events.end());
+  std::vector<Event> scratch;
+  EventSpan fresh = events_after(events, newest, scratch);
   if (!fresh.empty()) feed_.newest_t_us = std::max(newest, fresh.back().t_us);
   feed_.window_t_us = t_us;
   // Bounded like the estimator's own memory of an attempt's windows: a longer attempt catches up over the newest.

@@ -309,6 +309,14 @@ TEST(NamedQueue, WeightBudgetHoldsBetweenTwoThreadsAndDiscardAccountsForTheRest)
       for (int i = 0; i < kItems; ++i) q.push(1 + i % 37);
       q.close();
     });
+    // Read from the consumer's thread and from a third one (as the publish thread reads the statistics).
+    std::atomic<bool> done{false};
+    std::atomic<std::uint64_t> third_violations{0};
+    std::thread observer([&] {
+      while (!done.load()) {
+        if (q.stats().weight_fill > 100) third_violations.fetch_add(1);
+      }
+    });
     std::uint64_t got = 0;
     std::uint64_t violations = 0;
     int v = 0;
@@ -320,6 +328,9 @@ TEST(NamedQueue, WeightBudgetHoldsBetweenTwoThreadsAndDiscardAccountsForTheRest)
       if (r == PopResult::item) ++got;
     }
     producer.join();
+    done = true;
+    observer.join();
+    EXPECT_EQ(third_violations.load(), 0u);
     const auto s = q.stats();
     EXPECT_EQ(violations, 0u);
     EXPECT_LE(s.weight_high_water, 100u);

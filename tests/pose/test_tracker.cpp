@@ -200,9 +200,10 @@ TEST(Association, GridEqualsTheExhaustiveLoop) {
 
 namespace {
 
-// Under the sanitizers (CI's ASan+UBSan build, -O0) a sweep runs the first seed of each scene only: that covers every
-// code path the full sweep takes at a third of the time (the 5 cm sweep took ~100 s there). The convergence counts
-// below are the seeds' measured quality and are checked in the optimised builds, which run all seeds.
+// Under the sanitizers (CI's ASan+UBSan and TSan builds: Debug, the numerical libraries at -O1) a sweep runs the
+// first seed of each scene only: that covers the code paths of the full sweep at a third of the time (the 5 cm sweep
+// took ~100 s there). The thresholds below are the measured quality of all seeds and are checked in the optimised
+// builds, which run all seeds; under the sanitizers only what holds for any subset is checked.
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 constexpr bool kAllSeeds = false;
 #else
@@ -301,6 +302,8 @@ TEST(Tracker, TracksFromOneCmTwoDegrees) {
     EXPECT_GE(t.converged[0], 17);
     EXPECT_GE(t.converged[1], 9);
     EXPECT_GE(t.converged[2], 13);
+  } else {
+    EXPECT_GE(t.converged[0], t.runs[0] - 1);  // 17 of the 18 noise-free scenes converge: at most one miss
   }
 }
 

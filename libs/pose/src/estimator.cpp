@@ -220,9 +220,8 @@ PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, 
 void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
   // Windows may overlap (hop < length): only events newer than those already held are added.
   const std::int64_t newest_held = recent_.empty() ? std::numeric_limits<std::int64_t>::min() : recent_.back().t_us;
-  const auto fresh_from = std::upper_bound(window.begin(), window.end(), newest_held,
-                                           [](std::int64_t t, const Event& e) { return t < e.t_us; });
-  const EventSpan fresh(fresh_from, window.end());
+  std::vector<Event> scratch;
+  const EventSpan fresh = events_after(window, newest_held, scratch);
   std::int64_t oldest_kept = t_us - options_.init_accumulate_us;
   std::size_t cap = std::max({options_.init_target_events, options_.track_min_events, window.size()});
   if (attempt_t_us_) {  // an attempt runs elsewhere: keep what the catch-up will track, within a bound

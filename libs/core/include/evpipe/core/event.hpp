@@ -4,7 +4,9 @@
 // Conventions (docs/architecture.md): time in integer microseconds on the recording's or device's clock;
 // image origin top-left, x right, y down; polarity true = ON (brightness increase).
 
+#include <algorithm>
 #include <cstdint>
+#include <iterator>
 #include <memory>
 #include <span>
 #include <vector>
@@ -56,6 +58,18 @@ struct SensorGeometry {
   }
   friend bool operator==(const SensorGeometry&, const SensorGeometry&) = default;
 };
+
+/// The events of `events` later than t_us, in their order. In a time-ordered span they are a suffix, returned as a
+/// subspan; otherwise (a source that keeps small backward jumps: source.drop_out_of_order: false) they are copied
+/// into `scratch`.
+inline EventSpan events_after(EventSpan events, std::int64_t t_us, std::vector<Event>& scratch) {
+  const auto later = [t_us](const Event& e) { return e.t_us > t_us; };
+  const auto first = std::find_if(events.begin(), events.end(), later);
+  if (std::all_of(first, events.end(), later)) return {first, events.end()};
+  scratch.clear();
+  std::copy_if(first, events.end(), std::back_inserter(scratch), later);
+  return scratch;
+}
 
 inline constexpr SensorGeometry kDavis346{346, 260};
 inline constexpr SensorGeometry kDavis240{240, 180};

@@ -297,9 +297,14 @@ class NamedQueue {
     return queued + w <= weight_budget_ || queued == 0;
   }
   [[nodiscard]] std::uint64_t queued_weight() const noexcept {
-    // out is read first: a snapshot never shows more taken out than put in.
-    const std::uint64_t out = weight_out_.load(std::memory_order_acquire);
-    return weight_in_.load(std::memory_order_acquire) - out;
+    // out is read first: a snapshot never shows more taken out than put in. A third thread (stats()) reads out
+    // again: while it read `in` the consumer may have taken items and the producer pushed more in their place, and
+    // that mix would be more than was ever queued. out only grows, so two equal reads bracket a true state.
+    for (;;) {
+      const std::uint64_t out = weight_out_.load(std::memory_order_acquire);
+      const std::uint64_t in = weight_in_.load(std::memory_order_acquire);
+      if (weight_out_.load(std::memory_order_acquire) == out) return in - out;
+    }
   }
 
   /// The weight is counted in before the item becomes visible, so that the consumer, which counts it out after
