@@ -103,21 +103,11 @@ void PoseStage::feed(EventSpan events, std::int64_t t_us) {
   // window holds many events of one microsecond, and windows never split a microsecond).
   const std::int64_t newest = feed_.newest_t_us;
   std::vector<Event> scratch;
-  EventSpan fresh = events_after(events, newest, scratch);
+  const EventSpan fresh = events_after(events, newest, scratch);
   if (!fresh.empty()) feed_.newest_t_us = std::max(newest, fresh.back().t_us);
   feed_.window_t_us = t_us;
   // Bounded like the estimator's own memory of an attempt's windows: a longer attempt catches up over the newest.
-  // Trimmed before appending, so that the buffer never grows past the bound (at 12 Mev/s a window is ~350 000
-  // events).
-  const std::size_t cap = pose::PoseEstimator::kCatchUpMaxEvents;
-  if (fresh.size() >= cap) {
-    feed_.events.clear();
-    fresh = fresh.last(cap);
-  } else if (feed_.events.size() + fresh.size() > cap) {
-    feed_.events.erase(feed_.events.begin(),
-                       feed_.events.begin() + static_cast<std::ptrdiff_t>(feed_.events.size() + fresh.size() - cap));
-  }
-  feed_.events.insert(feed_.events.end(), fresh.begin(), fresh.end());
+  append_bounded(feed_.events, fresh, pose::PoseEstimator::kCatchUpMaxEvents, std::numeric_limits<std::int64_t>::min());
 }
 
 pose::InitOutcome PoseStage::run_attempt(const pose::InitJob& job) {  // on the worker

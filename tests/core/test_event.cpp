@@ -43,3 +43,22 @@ TEST(EventsAfter, AnEarlierEventAfterALaterOneIsLeftOutAndTheRestCopiedInOrder) 
   EXPECT_EQ(times_of(later), (std::vector<std::int64_t>{12, 15, 11}));
   EXPECT_EQ(later.data(), scratch.data());
 }
+
+TEST(AppendBounded, DropsTheOldestBeyondTheCapOrTooOldBeforeAppending) {
+  std::vector<Event> held = at_times({1, 2, 3});
+  evpipe::append_bounded(held, at_times({4, 5}), 10, 0);  // within both bounds: everything stays
+  EXPECT_EQ(times_of(held), (std::vector<std::int64_t>{1, 2, 3, 4, 5}));
+  evpipe::append_bounded(held, at_times({6, 7}), 4, 0);  // the cap drops held's oldest
+  EXPECT_EQ(times_of(held), (std::vector<std::int64_t>{4, 5, 6, 7}));
+  evpipe::append_bounded(held, at_times({8}), 10, 6);  // too old: 4 and 5
+  EXPECT_EQ(times_of(held), (std::vector<std::int64_t>{6, 7, 8}));
+  evpipe::append_bounded(held, at_times({9, 10, 11, 12}), 2, 0);  // fresh alone exceeds the cap: its newest
+  EXPECT_EQ(times_of(held), (std::vector<std::int64_t>{11, 12}));
+  evpipe::append_bounded(held, {}, 10, 100);  // all too old
+  EXPECT_TRUE(held.empty());
+  held = at_times({1, 2, 3, 4});
+  const std::size_t cap4 = held.capacity();
+  evpipe::append_bounded(held, at_times({5, 6}), 4, 0);  // trimmed first: no growth past what is kept
+  EXPECT_EQ(times_of(held), (std::vector<std::int64_t>{3, 4, 5, 6}));
+  EXPECT_EQ(held.capacity(), cap4);
+}

@@ -482,7 +482,7 @@ struct CurvatureFilter::Impl {
     std::size_t room = 0;
     std::uint32_t* reserve(std::size_t n) {
       if (n > room) {
-        at.reset(new std::uint32_t[n]);  // NOLINT(cppcoreguidelines-owning-memory): default-initialised on purpose
+        at = std::make_unique_for_overwrite<std::uint32_t[]>(n);
         room = n;
       }
       return at.get();

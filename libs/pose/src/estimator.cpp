@@ -228,17 +228,7 @@ void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
     oldest_kept = std::min(oldest_kept, *attempt_t_us_ - options_.track.window_us);
     cap = std::max(cap, kCatchUpMaxEvents);
   }
-  // The oldest events of held + fresh go: too old, or beyond the cap. Decided before appending, so that the
-  // buffer never holds more than it keeps (at 12 Mev/s a window is ~350 000 events: appending first made it
-  // grow to twice the cap, 16-24 MB).
-  const std::size_t held = recent_.size();
-  const std::size_t total = held + fresh.size();
-  const auto at = [&](std::size_t k) -> const Event& { return k < held ? recent_[k] : fresh[k - held]; };
-  std::size_t drop = 0;
-  while (drop < total && (at(drop).t_us < oldest_kept || total - drop > cap)) ++drop;
-  recent_.erase(recent_.begin(), recent_.begin() + static_cast<std::ptrdiff_t>(std::min(drop, held)));
-  recent_.insert(recent_.end(), fresh.begin() + static_cast<std::ptrdiff_t>(drop > held ? drop - held : 0),
-                 fresh.end());
+  append_bounded(recent_, fresh, cap, oldest_kept);
 }
 
 EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const {

@@ -71,6 +71,19 @@ inline EventSpan events_after(EventSpan events, std::int64_t t_us, std::vector<E
   return scratch;
 }
 
+/// Appends `fresh` (events later than all of `held`) to `held`, which keeps at most `cap` events and none older than
+/// `oldest_us` (held ∪ fresh loses its oldest first). Trimmed before appending, so that `held` never holds more than
+/// it keeps: appending a ~350 000-event window first made the pose buffers grow to twice their bound.
+inline void append_bounded(std::vector<Event>& held, EventSpan fresh, std::size_t cap, std::int64_t oldest_us) {
+  const std::size_t n_held = held.size();
+  const std::size_t total = n_held + fresh.size();
+  const auto at = [&](std::size_t k) -> const Event& { return k < n_held ? held[k] : fresh[k - n_held]; };
+  std::size_t drop = total > cap ? total - cap : 0;
+  while (drop < total && at(drop).t_us < oldest_us) ++drop;
+  held.erase(held.begin(), held.begin() + static_cast<std::ptrdiff_t>(std::min(drop, n_held)));
+  held.insert(held.end(), fresh.begin() + static_cast<std::ptrdiff_t>(drop > n_held ? drop - n_held : 0), fresh.end());
+}
+
 inline constexpr SensorGeometry kDavis346{346, 260};
 inline constexpr SensorGeometry kDavis240{240, 180};
 
