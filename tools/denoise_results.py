@@ -47,6 +47,8 @@ FILTERS = [
     FilterRun("curvature, causal", "curvature", ("mode=causal",), "past half of the ball only, no look-ahead"),
     FilterRun("density only", "curvature", ("curvature=false",), "the paper's first stage alone"),
     FilterRun("curvature, adaptive", "curvature", ("adaptive=true",), "density threshold from the estimated BA rate"),
+    FilterRun("curvature, as evpipe", "curvature", ("singular=keep", "adaptive=true", "adaptive_max_threshold=5"),
+              "evpipe's pipeline default: singular fits kept, threshold from the BA rate but at most the paper's 5"),
     FilterRun("hotpixel,curvature", "hotpixel,curvature", (), "online hot-pixel mask before the paper's filter"),
     FilterRun("baf", "baf", (), "dv-processing BAF, 2000 us (paper)"),
     FilterRun("knoise", "knoise", (), "dv-processing KNoise, 1000 us, 1 supporter (paper)"),

@@ -4,7 +4,8 @@
 Runs only evpipe's own binaries; no third-party Python package is needed:
   1. evsim makes the pose scenes of tools/make_scenes.sh (planar target and roadheader wireframe, 0.6/0.8/1.0 m,
      background activity 0/1/3/5 Hz/pixel, 3 s, seeded) into a cache under --work, keyed by the evsim binary;
-  2. for every scene and denoiser (none = raw, curvature, baf, knoise, ynoise):
+  2. for every scene and denoiser (none = raw, curvature with evpipe's defaults, curvature-paper with the paper's
+     fixed density threshold, baf, knoise, ynoise):
        evpipe --replay SCENE.aedat4 --speed max --camera CAM --model MODEL --prior PRIOR --poses-out OUT.csv
               --denoise FILTER --json --no-progress
   3. evpose-eval OUT.csv SCENE.gt.csv --json (and --only-tracking when the poses have a status column);
@@ -53,8 +54,11 @@ MODELS = [Model("planar", "target-planar.yaml", 1), Model("roadheader", "roadhea
 DISTANCES = [0.6, 0.8, 1.0]
 NOISE_HZ = [0, 1, 3, 5]
 DURATION_MS = 3000
-# (row label, evpipe --denoise); "raw" = no denoising.
-FILTERS = [("raw", "none"), ("curvature", "curvature"), ("baf", "baf"), ("knoise", "knoise"), ("ynoise", "ynoise")]
+# (row label, evpipe --denoise, denoise.params in the run's config or None); "raw" = no denoising. "curvature" is
+# evpipe's default (adaptive density threshold, at most the paper's 5); "curvature-paper" the paper's fixed 5.
+FILTERS = [("raw", "none", None), ("curvature", "curvature", None),
+           ("curvature-paper", "curvature", "{adaptive: false}"), ("baf", "baf", None), ("knoise", "knoise", None),
+           ("ynoise", "ynoise", None)]
 QUICK_DISTANCES = [0.8]
 QUICK_NOISE_HZ = [0, 5]
 QUICK_FILTERS = FILTERS[:2]
@@ -188,7 +192,19 @@ def evaluate(ctx: Ctx, poses: Path, gt: Path, extra: list[str]) -> dict:
     return json_object(r.stdout, "evpose-eval")
 
 
-def run_one(ctx: Ctx, scene: Path, s: Scene, label: str, denoise: str) -> dict:
+def run_config(ctx: Ctx, out_dir: Path, label: str, params: str | None) -> str | None:
+    """The evpipe --config of a run: --config FILE as given, plus the filter's denoise.params when it has some."""
+    if params is None:
+        return ctx.config
+    base = Path(ctx.config).read_text() if ctx.config else ""
+    if any(line.startswith("denoise:") for line in base.splitlines()):
+        raise Failure(f"--config {ctx.config} has a denoise section; the {label} rows set denoise.params themselves")
+    path = out_dir / f"config-{label}.yaml"
+    path.write_text(base + f"\ndenoise: {{params: {params}}}\n")
+    return str(path)
+
+
+def run_one(ctx: Ctx, scene: Path, s: Scene, label: str, denoise: str, params: str | None) -> dict:
     out_dir = ctx.work / "runs"
     out_dir.mkdir(parents=True, exist_ok=True)
     poses = out_dir / f"{s.name}.{label}.poses.csv"
@@ -196,8 +212,9 @@ def run_one(ctx: Ctx, scene: Path, s: Scene, label: str, denoise: str) -> dict:
     cmd = [ctx.evpipe, "--replay", str(scene), "--speed", "max", "--camera", str(scene.with_suffix(".camera.yaml")),
            "--model", str(scene.with_suffix(".model.yaml")), "--prior", str(scene.with_suffix(".prior.yaml")),
            "--poses-out", str(poses), "--denoise", denoise, "--json", "--no-progress"]
-    if ctx.config:
-        cmd[1:1] = ["--config", ctx.config]
+    config = run_config(ctx, out_dir, label, params)
+    if config:
+        cmd[1:1] = ["--config", config]
     cmd += ctx.evpipe_args
     t0 = time.monotonic()
     r = run(cmd, ctx.timeout)
@@ -291,7 +308,7 @@ def section_scene_tables(results: dict, scenes: list[Scene], filters) -> list[st
                   "| coverage | first ms | init ms | rate Hz | poses/s |",
                   "|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for s in ms:
-            for label, _ in filters:
+            for label, *_ in filters:
                 res = results[(s, label)]
                 head = f"| {s.distance} | {s.noise:g} | {label} |"
                 if cell_failed(res):
@@ -323,7 +340,7 @@ def section_matrix(results: dict, scenes: list[Scene], filters, noise_levels) ->
         "| filter | " + " | ".join(f"{n:g} Hz/px" for n in noise_levels) + " | rotation RMSE ° (all) |",
         "|---|" + "---:|" * (len(noise_levels) + 1),
     ]
-    for label, _ in filters:
+    for label, *_ in filters:
         cells = []
         rots = []
         for n in noise_levels:
@@ -368,6 +385,12 @@ def section_table6(results: dict, scenes: list[Scene]) -> list[str]:
                   else "n/a")
         lines.append(f"| ours, raw, {what} | " + " | ".join(fmt(v, 3) for v in raw) + " | |")
         lines.append(f"| ours, curvature, {what} | " + " | ".join(fmt(v, 3) for v in cur) + f" | {change} |")
+        if all((s, "curvature-paper") in results for s in scenes):
+            fixed = stats("curvature-paper", noise)
+            change = (f"{100.0 * (fixed[0] - raw[0]) / raw[0]:+.3f} %".replace("-", "−")
+                      if raw[0] and fixed[0] is not None else "n/a")
+            lines.append(f"| ours, curvature-paper (fixed ρ 5), {what} | " + " | ".join(fmt(v, 3) for v in fixed)
+                         + f" | {change} |")
     lines.append("")
     return lines
 
@@ -490,10 +513,9 @@ def main() -> None:
     probe = guarded(run_one, ctx, paths[scenes[0]], scenes[0], *filters[0])
     if cell_failed(probe):
         fail_exit(f"first run failed, nothing else tried:\n{probe['failure']}")
-    jobs = [(run_one, ctx, paths[s], s, label, denoise) for s in scenes for label, denoise in filters
-            if (s, label) != (scenes[0], filters[0][0])]
+    jobs = [(run_one, ctx, paths[s], s, *f) for s in scenes for f in filters if (s, f[0]) != (scenes[0], filters[0][0])]
     results = {(scenes[0], filters[0][0]): probe}
-    for (_, _, _, s, label, _), res in zip(jobs, parallel(ctx, jobs)):
+    for (_, _, _, s, label, _, _), res in zip(jobs, parallel(ctx, jobs)):
         results[(s, label)] = res
     ctx.failures += [res["failure"] for res in results.values() if cell_failed(res)]
     print(f"{PROG}: {len(results)} runs, {len(ctx.failures)} failed", file=sys.stderr)
@@ -518,7 +540,11 @@ def main() -> None:
         + (f" `--config {Path(a.config).name}`" if a.config else "")
         + (f" `{' '.join(a.evpipe_arg)}`" if a.evpipe_arg else "")
         + " and scored by `evpose-eval POSES SCENE.gt.csv` (no alignment: both are T_cam_model). Filters: "
-        + ", ".join(f"**{label}** (`--denoise {d}`)" for label, d in filters) + ".",
+        + ", ".join(f"**{label}** (`--denoise {d}`" + (f", `denoise.params: {p}`" if p else "") + ")"
+                    for label, d, p in filters)
+        + ". `curvature` runs with evpipe's defaults for it (`singular: keep`; the density threshold follows the "
+        "measured noise rate, at most the paper's 5: docs/algorithms.md, \"Curvature filter in the pipeline\"); "
+        "`curvature-paper` with the paper's fixed threshold 5.",
         "",
     ]
     if a.quick:

@@ -89,28 +89,6 @@ evpipe::io::ReaderOptions reader_options(const evpipe::config::SourceConfig& s) 
   return o;
 }
 
-// evpipe's default for the paper's curvature filter differs in one parameter from evdenoise's (the paper's
-// Table 1 setting): fits that are singular on the pixel grid are kept, not dropped. A thin target edge puts
-// its neighbours on one line of pixels, so its quadric fit is rank-deficient: with `reject` the filter drops
-// 86 % of the signal of the roadheader scenes and tracking fails (docs/algorithms.md, "Curvature filter in
-// the pipeline"). Applied only when the configuration does not set `singular` itself.
-std::vector<std::pair<std::string, std::string>> pipeline_denoise_params(const evpipe::config::DenoiseConfig& d) {
-  auto params = d.params;
-  std::vector<std::string> names;
-  for (std::size_t start = 0; start <= d.filter.size();) {
-    const auto comma = std::min(d.filter.find(',', start), d.filter.size());
-    names.push_back(d.filter.substr(start, comma - start));
-    start = comma + 1;
-  }
-  const bool single = names.size() == 1;
-  if (std::find(names.begin(), names.end(), "curvature") == names.end()) return params;
-  const std::string key = single ? "singular" : "curvature.singular";
-  for (const auto& [k, v] : params)
-    if (k == key || k == "curvature.singular") return params;
-  params.emplace_back(key, "keep");
-  return params;
-}
-
 // The summary's accuracy block: ATE of the valid poses against the ground truth (replay only).
 void add_ate(evpipe::app::RunSummary& summary, const std::vector<evpipe::camera::StampedPose>& truth,
              const std::vector<evpipe::camera::StampedPose>& poses) {
@@ -194,8 +172,11 @@ int run(const Cli& cli) {
   std::unique_ptr<denoise::Filter> filter;
   if (cfg.denoise.filter != "none") {
     try {
-      filter =
-          denoise::make_filter_chain(cfg.denoise.filter, pipeline_denoise_params(cfg.denoise), source->info().geometry);
+      const auto params = cfg.denoise.pipeline_params();
+      filter = denoise::make_filter_chain(cfg.denoise.filter, params, source->info().geometry);
+      std::string text;
+      for (const auto& [k, v] : params) text += fmt::format("{}{}={}", text.empty() ? "" : " ", k, v);
+      spdlog::info("denoise: {}{}{}", cfg.denoise.filter, text.empty() ? "" : " with ", text);
     } catch (const std::invalid_argument& e) {
       std::fprintf(stderr, "evpipe: configuration error: denoise: %s\n", e.what());
       return 2;
@@ -292,6 +273,7 @@ int run(const Cli& cli) {
   summary.source = pipe.source_stats();
   summary.denoise_in = stats.denoise_events_in;
   summary.denoise_kept = stats.denoise_events_kept;
+  for (const auto& item : pipe.denoise_report()) summary.denoise_report.emplace_back(item.key, item.value);
   summary.windows = stats.windows;
   for (const auto& s : stats.stages)
     if (s.name == "pose") summary.window_events = s.events_in;

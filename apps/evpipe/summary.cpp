@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 namespace evpipe::app {
@@ -71,6 +72,15 @@ std::string format_text(const RunSummary& s) {
          fmt::format("{}: kept {} of {} ({:.1f} %), decision latency {} ms", s.denoise_filter, s.denoise_kept,
                      s.denoise_in, s.denoise_in ? 100.0 * static_cast<double>(s.denoise_kept) / s.denoise_in : 0.0,
                      s.denoise_latency_us / 1000.0));
+  if (!s.denoise_report.empty()) {
+    std::string figures;
+    for (const auto& [key, value] : s.denoise_report) {
+      const bool whole = std::abs(value) < 1e15 && value == std::floor(value);
+      figures += fmt::format("{}{} {}", figures.empty() ? "" : ", ", key,
+                             whole ? fmt::format("{:.0f}", value) : fmt::format("{:.3f}", value));
+    }
+    line("denoise figures", figures);
+  }
   line("windows", fmt::format("{} of {} ms, hop {} ms ({} events)", s.windows, s.window_us / 1000.0, s.hop_us / 1000.0,
                               s.window_events));
   if (s.pose.enabled) {
@@ -134,7 +144,13 @@ std::string pose_json(const PoseSummary& p) {
 
 namespace {
 std::string pipeline_json(const RunSummary& s) {
-  std::string o = ",\"queue_drops\":{";
+  std::string o = ",\"denoise_report\":{";
+  for (std::size_t i = 0; i < s.denoise_report.size(); ++i) {
+    const double v = s.denoise_report[i].second;
+    o += fmt::format("{}{}:{}", i ? "," : "", json_quote(s.denoise_report[i].first),
+                     std::isfinite(v) ? fmt::format("{}", v) : std::string("null"));
+  }
+  o += "},\"queue_drops\":{";
   for (std::size_t i = 0; i < s.queue_drops.size(); ++i)
     o += fmt::format("{}{}:{}", i ? "," : "", json_quote(s.queue_drops[i].first), s.queue_drops[i].second);
   o += fmt::format(

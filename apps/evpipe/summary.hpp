@@ -21,8 +21,11 @@ struct RunSummary {
   std::uint64_t denoise_in = 0;         ///< events into the denoise stage
   std::uint64_t denoise_kept = 0;       ///< events it kept
   std::int64_t denoise_latency_us = 0;  ///< its look-ahead (sensor time an event waits for its decision)
-  std::uint64_t windows = 0;            ///< windows of kept events
-  std::uint64_t window_events = 0;      ///< events counted in those windows
+  /// The filter's own figures at the end (denoise::Filter::report(); curvature: noise_rate_hz,
+  /// density_threshold_used, ...).
+  std::vector<std::pair<std::string, double>> denoise_report;
+  std::uint64_t windows = 0;        ///< windows of kept events
+  std::uint64_t window_events = 0;  ///< events counted in those windows
   std::int64_t window_us = 0;
   std::int64_t hop_us = 0;
   double wall_s = 0;

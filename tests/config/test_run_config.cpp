@@ -69,6 +69,34 @@ TEST(RunConfig, DenoiseSectionKeepsParamsInOrder) {
   EXPECT_NE(error_of("denoise: {filtre: baf}").find("t.yaml: denoise.filtre: unknown key"), std::string::npos);
 }
 
+TEST(RunConfig, PipelineFilterParamsAddEvpipesCurvatureDefaultsWhereUnset) {
+  using Params = std::vector<std::pair<std::string, std::string>>;
+  const auto params_of = [](const std::string& yaml) { return parse_config(yaml).denoise.pipeline_params(); };
+  // The default filter alone: singular keep, and the adaptive threshold capped at the paper's 5.
+  EXPECT_EQ(params_of(""), (Params{{"singular", "keep"}, {"adaptive", "true"}, {"adaptive_max_threshold", "5"}}));
+  // In a chain, prefixed; the user's own keys come first and are kept.
+  EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,curvature', params: {hotpixel.ratio: 9}}"),
+            (Params{{"hotpixel.ratio", "9"},
+                    {"curvature.singular", "keep"},
+                    {"curvature.adaptive", "true"},
+                    {"curvature.adaptive_max_threshold", "5"}}));
+  // Any threshold choice of the user's stands as given (a fixed threshold stays fixed).
+  EXPECT_EQ(params_of("denoise: {params: {density_threshold: 6}}"),
+            (Params{{"density_threshold", "6"}, {"singular", "keep"}}));
+  EXPECT_EQ(params_of("denoise: {params: {adaptive: false, singular: reject}}"),
+            (Params{{"adaptive", "false"}, {"singular", "reject"}}));
+  EXPECT_EQ(params_of("denoise: {params: {curvature.adaptive_max_threshold: 0}}"),
+            (Params{{"curvature.adaptive_max_threshold", "0"}, {"singular", "keep"}}));
+  EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,curvature', params: {curvature.adaptive: true}}"),
+            (Params{{"curvature.adaptive", "true"}, {"curvature.singular", "keep"}}));
+  // A bare key in a chain goes to the one filter that has it (curvature): it counts as set.
+  EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,curvature', params: {singular: reject, density_threshold: 4}}"),
+            (Params{{"singular", "reject"}, {"density_threshold", "4"}}));
+  // Other filters get nothing added.
+  EXPECT_EQ(params_of("denoise: {filter: baf}"), Params{});
+  EXPECT_EQ(params_of("denoise: {filter: none}"), Params{});
+}
+
 TEST(RunConfig, MissingFile) {
   try {
     evpipe::config::load_config("/nonexistent/evpipe.yaml");

@@ -607,9 +607,9 @@ TEST(Curvature, RegistryAndParameterRejection) {
   EXPECT_EQ(f->name(), "curvature");
   EXPECT_TRUE(f->has_score());
   const auto params = describe(*find_filter("curvature"));
-  for (const char* key :
-       {"radius", "lt_us", "inclusive_radius", "density_threshold", "curvature", "keep_fraction", "rule", "singular",
-        "window_us", "mode", "backend", "adaptive", "target_noise_pass", "adaptive_period_us"}) {
+  for (const char* key : {"radius", "lt_us", "inclusive_radius", "density_threshold", "curvature", "keep_fraction",
+                          "rule", "singular", "window_us", "mode", "backend", "adaptive", "target_noise_pass",
+                          "adaptive_period_us", "adaptive_max_threshold"}) {
     EXPECT_TRUE(std::any_of(params.begin(), params.end(), [&](const ParamInfo& p) { return p.key == key; })) << key;
   }
   const auto rejects = [](const std::string& key, const std::string& value) {
@@ -640,6 +640,8 @@ TEST(Curvature, RegistryAndParameterRejection) {
   rejects("density_threshold", "0");
   rejects("target_noise_pass", "1");
   rejects("adaptive_period_us", "0");
+  rejects("adaptive_max_threshold", "1");
+  rejects("adaptive_max_threshold", "-5");
   rejects("no_such_key", "1");
   CurvatureOptions o;
   o.keep_fraction = 2;
@@ -726,6 +728,53 @@ TEST(Curvature, AdaptiveEstimatesTheNoiseRateAndStaysPushInvariant) {
     EXPECT_NEAR(report_value(m.report, "noise_rate_hz"), 5.0, 0.35) << to_string(mode) << " seed " << seed;
     expect_same(m, batch(o, ev), std::string("adaptive ") + std::string(to_string(mode)) + " vs batch");
   }
+}
+
+TEST(Curvature, AdaptiveMaxThresholdCapsOnlyTheRise) {
+  // The cap keeps the paper's 5 where the estimate would raise it (5 Hz/px: 7) and leaves the lowering where the
+  // noise is low (0.2 Hz/px: 3); the rate estimate is the same model either way.
+  const std::uint64_t seed = 977;
+  for (const double hz : {5.0, 0.2}) {
+    std::mt19937_64 rng(seed);
+    sim::NoiseOptions no;
+    no.rate_hz_per_pixel = hz;
+    const auto ev = sim::background_activity(kDavis346, 0, 2'000'000, no, rng);
+    CurvatureOptions o;
+    o.adaptive = true;
+    o.adaptive_period_us = 500'000;
+    o.curvature = false;
+    const Outcome free = run(o, ev, time_cuts(ev, 20'000));
+    o.adaptive_max_threshold = 5;
+    const Outcome capped = run(o, ev, time_cuts(ev, 20'000));
+    const double th_free = report_value(free.report, "density_threshold_used");
+    const double th_capped = report_value(capped.report, "density_threshold_used");
+    std::printf("[ info ] %.1f Hz/px: threshold %.0f free, %.0f capped at 5; estimate %.2f / %.2f Hz/px (seed %llu)\n",
+                hz, th_free, th_capped, report_value(free.report, "noise_rate_hz"),
+                report_value(capped.report, "noise_rate_hz"), static_cast<unsigned long long>(seed));
+    EXPECT_NEAR(report_value(capped.report, "noise_rate_hz"), hz, hz * 0.1) << "seed " << seed;
+    expect_same(capped, batch(o, ev), "capped stream vs batch");
+    if (hz > 1.0) {
+      EXPECT_EQ(th_free, 7) << "seed " << seed;
+      EXPECT_EQ(th_capped, 5) << "seed " << seed;
+      // Capped at the paper's threshold, every period decides as the fixed filter does.
+      o.adaptive = false;
+      expect_same(capped, run(o, ev, time_cuts(ev, 20'000)), "capped at 5 vs fixed 5");
+    } else {
+      EXPECT_EQ(th_free, 3) << "seed " << seed;
+      EXPECT_EQ(th_capped, 3) << "seed " << seed;
+      expect_same(capped, free, "below the cap");
+    }
+  }
+  // A cap below the initial threshold applies from the first period on.
+  CurvatureOptions o;
+  o.adaptive = true;
+  o.adaptive_max_threshold = 3;
+  std::mt19937_64 rng(seed);
+  const auto ev = sim::uniform_noise(kDavis346, 0, 30'000, 3000, rng);
+  const Outcome r = run(o, ev);
+  o.adaptive = false;
+  o.density_threshold = 3;
+  expect_same(r, run(o, ev), "first period at the cap");
 }
 
 // ----------------------------------------------------------------------------------------- Table 1

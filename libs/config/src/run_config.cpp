@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <fmt/format.h>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -185,6 +186,33 @@ RunConfig load_config(const std::string& path) {
   std::stringstream ss;
   ss << in.rdbuf();
   return parse_config(ss.str(), path);
+}
+
+std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params() const {
+  auto out = params;
+  std::vector<std::string> names;
+  for (std::size_t start = 0; start <= filter.size();) {
+    const auto comma = std::min(filter.find(',', start), filter.size());
+    names.push_back(filter.substr(start, comma - start));
+    start = comma + 1;
+  }
+  if (std::find(names.begin(), names.end(), "curvature") == names.end()) return out;
+  const bool single = names.size() == 1;
+  // A bare key counts in a chain too: only curvature has these keys, so the chain gives them to it.
+  const auto is_set = [&](std::string_view key) {
+    return std::any_of(params.begin(), params.end(),
+                       [&](const auto& kv) { return kv.first == key || kv.first == "curvature." + std::string(key); });
+  };
+  const auto add = [&](std::string_view key, std::string value) {
+    out.emplace_back(single ? std::string(key) : "curvature." + std::string(key), std::move(value));
+  };
+  // Why these differ from the paper's Table 1 setting (evdenoise's defaults): docs/algorithms.md.
+  if (!is_set("singular")) add("singular", "keep");
+  if (!is_set("adaptive") && !is_set("density_threshold") && !is_set("adaptive_max_threshold")) {
+    add("adaptive", "true");
+    add("adaptive_max_threshold", "5");
+  }
+  return out;
 }
 
 void RunConfig::validate() const {

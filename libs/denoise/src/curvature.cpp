@@ -53,6 +53,10 @@ void validate(const CurvatureOptions& o) {
   if (o.adaptive_period_us <= 0) {
     bad_option("adaptive_period_us", fmt::format("{}", o.adaptive_period_us), "must be > 0");
   }
+  if (o.adaptive_max_threshold != 0 && o.adaptive_max_threshold < 2) {
+    bad_option("adaptive_max_threshold", fmt::format("{}", o.adaptive_max_threshold),
+               "must be 0 (no limit) or an integer >= 2");
+  }
 }
 
 std::string_view to_string(CurvatureMode m) noexcept {
@@ -871,6 +875,11 @@ CurvatureOptions curvature_options_from(Params& p) {
   p.require_range("target_noise_pass", o.target_noise_pass, 0.0, 1.0, true, true);
   o.adaptive_period_us = p.integer("adaptive_period_us", o.adaptive_period_us, "adaptive: estimation period");
   p.require_positive("adaptive_period_us", static_cast<double>(o.adaptive_period_us));
+  o.adaptive_max_threshold = p.integer("adaptive_max_threshold", o.adaptive_max_threshold,
+                                       "adaptive: the threshold never goes above this (0 = no limit, else >= 2)");
+  if (o.adaptive_max_threshold != 0 && o.adaptive_max_threshold < 2) {
+    p.fail("adaptive_max_threshold", "must be 0 (no limit) or an integer >= 2");
+  }
   return o;
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 
 namespace evpipe::denoise {
@@ -137,8 +138,10 @@ NoiseRateEstimator::NoiseRateEstimator(ExposureModel model, const CurvatureOptio
       enabled_(options.adaptive),
       period_us_(options.adaptive_period_us),
       target_(options.target_noise_pass),
-      initial_threshold_(options.density_threshold),
-      threshold_(options.density_threshold) {}
+      max_threshold_(options.adaptive && options.adaptive_max_threshold > 0 ? options.adaptive_max_threshold
+                                                                            : std::numeric_limits<std::int64_t>::max()),
+      initial_threshold_(std::min(options.density_threshold, max_threshold_)),
+      threshold_(initial_threshold_) {}
 
 void NoiseRateEstimator::reset() noexcept {
   threshold_ = initial_threshold_;
@@ -163,7 +166,7 @@ std::int64_t NoiseRateEstimator::adaptive_threshold(std::int64_t t_us) noexcept 
     const std::int64_t end_us = (period_ + 1) * period_us_;
     const double seconds = static_cast<double>(end_us - observed_from_us_) * 1e-6;
     rate_hz_ = estimate_noise_rate(failed_, seconds, model_, threshold_, rate_hz_);
-    threshold_ = threshold_for_rate(rate_hz_, model_, target_);
+    threshold_ = std::min(threshold_for_rate(rate_hz_, model_, target_), max_threshold_);
     ++periods_;
     period_ = p;
     observed_from_us_ = p * period_us_;

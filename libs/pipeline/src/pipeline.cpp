@@ -593,4 +593,8 @@ const SourceStats& Pipeline::source_stats() const noexcept {
   return impl_->source->stats();
 }
 
+std::vector<denoise::ReportItem> Pipeline::denoise_report() const {
+  return impl_->filter ? impl_->filter->report() : std::vector<denoise::ReportItem>{};
+}
+
 }  // namespace evpipe::pipeline

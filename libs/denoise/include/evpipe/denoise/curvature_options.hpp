@@ -47,6 +47,10 @@ struct CurvatureOptions {
   bool adaptive = false;                      ///< set ρ_TH per period from the estimated noise rate
   double target_noise_pass = 0.01;            ///< adaptive: largest share of pure-noise events passing density
   std::int64_t adaptive_period_us = 100'000;  // ~9 000 noise events per period at 1 Hz/px
+  /// adaptive: the threshold never goes above this (0 = no limit; else ≥ 2). evpipe's pose pipeline uses the
+  /// paper's 5: a lower threshold where the noise is low keeps slow edges, a higher one where it is high costs
+  /// the tracker more signal than the noise it removes (docs/algorithms.md, "Adaptive threshold").
+  std::int64_t adaptive_max_threshold = 0;
 };
 
 /// Throws std::invalid_argument ("curvature: <key>=<value>: <why>") for an out-of-range option.

@@ -48,7 +48,8 @@ double estimate_noise_rate(double failed, double seconds, const ExposureModel& m
 std::int64_t threshold_for_rate(double rate_hz, const ExposureModel& model, double target) noexcept;
 
 /// Per absolute period [k·P, (k+1)·P): counts density failures, and at each period boundary updates the
-/// rate estimate and the threshold for the next period. Call threshold() with non-decreasing periods.
+/// rate estimate and the threshold for the next period, at most adaptive_max_threshold when that is set (so
+/// is the first period's, density_threshold). Call threshold() with non-decreasing periods.
 class NoiseRateEstimator {
  public:
   NoiseRateEstimator(ExposureModel model, const CurvatureOptions& options);
@@ -72,6 +73,7 @@ class NoiseRateEstimator {
   bool enabled_;
   std::int64_t period_us_;
   double target_;
+  std::int64_t max_threshold_;  // adaptive_max_threshold (no limit: int64 max)
   std::int64_t initial_threshold_;
   std::int64_t threshold_;
   double rate_hz_ = 0.0;

@@ -194,6 +194,9 @@ class Pipeline {
   [[nodiscard]] const StreamStats& stream_stats() const noexcept;
   /// The source's own counters. Only after join().
   [[nodiscard]] const SourceStats& source_stats() const noexcept;
+  /// The filter's own figures (denoise::Filter::report(): the curvature filter's noise-rate estimate and the
+  /// density threshold in force, ...); empty without a filter. Only after join() (the denoise thread owns it).
+  [[nodiscard]] std::vector<denoise::ReportItem> denoise_report() const;
 
   struct Impl;
 
