@@ -34,6 +34,7 @@
 #include "evpipe/metrics/classification.hpp"
 #include "evpipe/metrics/esr.hpp"
 #include "evpipe/metrics/roc.hpp"
+#include "evpipe/pipeline/task_pool.hpp"
 #include "json.hpp"
 #include "preview.hpp"
 
@@ -60,6 +61,7 @@ struct Options {
   bool list_filters = false;
   bool quiet = false;
   std::size_t batch_events = 8192;
+  int threads = 1;  ///< threads the filter's blocks are spread over (curvature: row bands; decisions do not change)
 };
 
 using Settings = std::vector<std::pair<std::string, std::string>>;
@@ -176,6 +178,9 @@ class TimedFilter final : public denoise::Filter {
   [[nodiscard]] std::int64_t latency_us() const noexcept override { return filter_->latency_us(); }
   [[nodiscard]] bool has_score() const noexcept override { return filter_->has_score(); }
   [[nodiscard]] std::vector<denoise::ReportItem> report() const override { return filter_->report(); }
+  void set_parallelism(int tasks, denoise::TaskRunner runner) override {
+    filter_->set_parallelism(tasks, std::move(runner));
+  }
 
   [[nodiscard]] double seconds() const { return std::chrono::duration<double>(elapsed_).count(); }
 
@@ -227,6 +232,9 @@ int run(const Options& o) {
   const bool labelled = reader->info().labelled;
   TimedFilter filter(as_usage([&] { return denoise::make_filter_chain(o.filter, settings, geometry); }));
   const bool scored = filter.has_score();
+  // --threads: the caller's thread and threads − 1 workers (filters that cannot split ignore it).
+  pipeline::TaskPool pool(o.threads - 1, "evdenoise-");
+  if (o.threads > 1) filter.set_parallelism(o.threads, pool.runner());
 
   std::optional<evdenoise::Preview> preview;
   if (!o.png.empty()) {
@@ -314,6 +322,7 @@ int run(const Options& o) {
     j.key("nrr").value(cls.nrr());
     j.key("latency_us").value(filter.latency_us());
     j.key("max_pending_events").value(std::uint64_t{max_pending});
+    j.key("threads").value(std::int64_t{o.threads});
     j.key("filter_s").value(filter.seconds());
     j.key("throughput_mev_s")
         .value(filter.seconds() > 0 ? std::optional<double>(static_cast<double>(cls.events_in) / filter.seconds() / 1e6)
@@ -401,6 +410,9 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", o.quiet, "No summary line");
   app.add_option("--batch-events", o.batch_events, "Events per read batch (decisions do not depend on it)")
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 24));
+  app.add_option("--threads", o.threads,
+                 "Threads one 30 ms block of the curvature filter is spread over (same decisions for any value)")
+      ->check(CLI::Range(1, 64));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -274,6 +274,32 @@ TEST(Evdenoise, SampleOutputIsTheDirectRunsKeptSubsetInBothFormats) {
   }
 }
 
+TEST(Evdenoise, ThreadsGiveTheSameOutput) {
+  // The curvature filter's row bands on 3 threads (2 workers + the caller): the same events kept, in order.
+  for (const std::string args : {"--filter curvature", "--filter hotpixel,curvature --set mode=frames",
+                                 "--filter curvature --set adaptive=true --set singular=keep"}) {
+    const std::string one = (dir() / "threads-1.aedat4").string();
+    const std::string three = (dir() / "threads-3.aedat4").string();
+    const auto r1 = run(kEvdenoise + " " + q(kSample) + " " + q(one) + " " + args + " --metrics");
+    const auto r3 = run(kEvdenoise + " " + q(kSample) + " " + q(three) + " " + args + " --threads 3 --metrics");
+    ASSERT_EQ(r1.status, 0) << args << ": " << r1.err;
+    ASSERT_EQ(r3.status, 0) << args << ": " << r3.err;
+    EXPECT_EQ(parse_json(r1.out).at("threads").num(), 1);
+    EXPECT_EQ(parse_json(r3.out).at("threads").num(), 3);
+    const auto a = io::read_all(one);
+    const auto b = io::read_all(three);
+    ASSERT_GT(a.events.size(), 0U) << args;
+    EXPECT_TRUE(a.events == b.events) << args;
+    EXPECT_EQ(parse_json(r1.out).at("events_kept").num(), parse_json(r3.out).at("events_kept").num()) << args;
+  }
+  const std::string out = (dir() / "threads-0.aedat4").string();
+  fs::remove(out);
+  const auto r = run(kEvdenoise + " " + q(kSample) + " " + q(out) + " --filter curvature --threads 0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--threads"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(Evdenoise, SummaryLineWithoutMetrics) {
   const std::string out = (dir() / "summary.aedat4").string();
   const auto r = run(kEvdenoise + " " + q(kSample) + " " + q(out) + " --filter baf");
