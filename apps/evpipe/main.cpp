@@ -273,7 +273,7 @@ int run(const Cli& cli) {
   summary.source = pipe.source_stats();
   summary.denoise_in = stats.denoise_events_in;
   summary.denoise_kept = stats.denoise_events_kept;
-  for (const auto& item : pipe.denoise_report()) summary.denoise_report.emplace_back(item.key, item.value);
+  for (const auto& item : stats.denoise_report) summary.denoise_report.emplace_back(item.key, item.value);
   summary.windows = stats.windows;
   for (const auto& s : stats.stages)
     if (s.name == "pose") summary.window_events = s.events_in;

@@ -111,8 +111,14 @@ void AppSink::publish_stats(const pipeline::PipelineStats& stats) {
       qr.fill_max = static_cast<std::int32_t>(q.high_water);
       qr.pushed = static_cast<std::int64_t>(q.pushed);
       qr.dropped = static_cast<std::int64_t>(q.dropped);
+      if (q.weight_budget > 0) {
+        qr.events_budget = static_cast<std::int64_t>(q.weight_budget);
+        qr.events = static_cast<std::int64_t>(q.weight_fill);
+        qr.events_max = static_cast<std::int64_t>(q.weight_high_water);
+      }
       r.queues.push_back(std::move(qr));
     }
+    for (const auto& item : stats.denoise_report) r.denoise_figures.emplace_back(item.key, item.value);
     publisher_->publish_stats(r);
   }
   const std::lock_guard lock(mutex_);

@@ -233,6 +233,25 @@ void replay_equals_sequential(const std::string& path, const std::string& filter
   ASSERT_FALSE(sink.stats.empty());  // the final statistics come after the end
   EXPECT_FALSE(sink.stats.back().running);
   EXPECT_EQ(sink.stats.back().poses_published, want.size());
+  // The filter's own figures at the end are those of one direct run over the whole recording.
+  if (filter == "none") {
+    EXPECT_TRUE(s.denoise_report.empty());
+  } else {
+    auto direct = filter_for(filter, geometry);
+    denoise::Decisions d;
+    const auto all = io::read_all(path);
+    direct->push(all.events, d);
+    direct->finish(d);
+    const auto want_report = direct->report();
+    ASSERT_EQ(s.denoise_report.size(), want_report.size()) << filter;
+    for (std::size_t i = 0; i < want_report.size(); ++i) {
+      EXPECT_EQ(s.denoise_report[i].key, want_report[i].key);
+      EXPECT_EQ(s.denoise_report[i].value, want_report[i].value) << filter << " " << want_report[i].key;
+    }
+    const auto& published = sink.stats.back().denoise_report;
+    ASSERT_EQ(published.size(), want_report.size()) << filter;
+    for (std::size_t i = 0; i < want_report.size(); ++i) EXPECT_EQ(published[i].value, want_report[i].value);
+  }
 }
 
 TEST(PipelineGraph, ReplayOfARealRecordingEqualsTheSequentialWindows) {

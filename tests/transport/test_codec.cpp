@@ -147,7 +147,8 @@ StatsRecord sample_stats() {
               {"denoise", 1000, 420, 17, 10, 9000, 800.0, 950.0, 1200.0},
               {"pose", 420, 420, 0, 33, 30000, 900.0, 1500.0, 2100.0},
               {"publish", 33, 33, 0, 33, 66, 2.0, 3.0, 4.0}};
-  s.queues = {{"source->denoise", 64, 3, 12, 1000, 17}, {"denoise->pose", 16, 0, 2, 330, 0}};
+  s.queues = {{"batches", 64, 3, 12, 1000, 17, 1'000'000, 24'576, 250'000}, {"windows", 16, 0, 2, 330, 0, 0, 0, 0}};
+  s.denoise_figures = {{"noise_rate_hz", 1.125}, {"density_threshold_used", 4}};
   return s;
 }
 
@@ -193,7 +194,11 @@ TEST(TransportCodec, StatsRoundTripsEveryField) {
     EXPECT_EQ(b.fill_max, a.fill_max);
     EXPECT_EQ(b.pushed, a.pushed);
     EXPECT_EQ(b.dropped, a.dropped);
+    EXPECT_EQ(b.events_budget, a.events_budget);
+    EXPECT_EQ(b.events, a.events);
+    EXPECT_EQ(b.events_max, a.events_max);
   }
+  EXPECT_EQ(out->denoise_figures, in.denoise_figures);
 }
 
 TEST(TransportCodec, ForeignAndTruncatedBytesAreNotDecoded) {
@@ -261,9 +266,11 @@ TEST(TransportText, JsonLines) {
   EXPECT_NE(s.find("{\"name\":\"denoise\",\"events_in\":1000,\"events_kept\":420,\"events_dropped\":17"),
             std::string::npos)
       << s;
-  EXPECT_NE(s.find("{\"name\":\"source->denoise\",\"capacity\":64,\"fill\":3,\"fill_max\":12,\"pushed\":1000,"
-                   "\"dropped\":17}"),
+  EXPECT_NE(s.find("{\"name\":\"batches\",\"capacity\":64,\"fill\":3,\"fill_max\":12,\"pushed\":1000,"
+                   "\"dropped\":17,\"events_budget\":1000000,\"events\":24576,\"events_max\":250000}"),
             std::string::npos)
+      << s;
+  EXPECT_NE(s.find("\"denoise_figures\":{\"noise_rate_hz\":1.125,\"density_threshold_used\":4}}"), std::string::npos)
       << s;
 }
 

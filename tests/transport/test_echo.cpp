@@ -59,7 +59,8 @@ TEST(LcmEcho, PrintsALogAsJsonLines) {
       ASSERT_TRUE(pub.publish_pose(pose_at(1000 * k)));
     }
     StatsRecord s;
-    s.queues = {{"source->denoise", 64, 1, 2, 3, 4}};
+    s.queues = {{"batches", 64, 1, 2, 3, 4, 1000, 300, 700}};
+    s.denoise_figures = {{"noise_rate_hz", 0.5}, {"density_threshold_used", 3}};
     ASSERT_TRUE(pub.publish_stats(s));
   }
   const auto r = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log " + q(log.string()), dir);
@@ -75,13 +76,19 @@ TEST(LcmEcho, PrintsALogAsJsonLines) {
   }
   EXPECT_NE(l[4].find("\"type\":\"evpipe.stats_t\""), std::string::npos) << l[4];
   EXPECT_NE(l[4].find("\"poses_published\":4,"), std::string::npos) << l[4];
-  EXPECT_NE(l[4].find("\"name\":\"source->denoise\""), std::string::npos) << l[4];
+  EXPECT_NE(l[4].find("\"name\":\"batches\""), std::string::npos) << l[4];
+  EXPECT_NE(l[4].find("\"events_budget\":1000,\"events\":300,\"events_max\":700}"), std::string::npos) << l[4];
+  EXPECT_NE(l[4].find("\"denoise_figures\":{\"noise_rate_hz\":0.5,\"density_threshold_used\":3}}"), std::string::npos)
+      << l[4];
 
-  const auto t = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --text --count 2 --log " + q(log.string()), dir);
+  const auto t = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --text --log " + q(log.string()), dir);
   ASSERT_EQ(t.status, 0) << t.err;
   const auto tl = lines(t.out);
-  ASSERT_EQ(tl.size(), 2U) << t.out;
+  ASSERT_EQ(tl.size(), 5U) << t.out;
   EXPECT_EQ(tl[1].rfind("EVPIPE_POSE #1 t=0.001000 s lost (invalid) t_m=[0.5000 0.2500 3.0000]", 0), 0U) << tl[1];
+  EXPECT_NE(tl[4].find("| batches 1/64 dropped=4 events=300/1000 | noise_rate_hz=0.500 density_threshold_used=3"),
+            std::string::npos)
+      << tl[4];
   fs::remove_all(dir);
 }
 

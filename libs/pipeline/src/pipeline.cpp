@@ -114,7 +114,10 @@ class ReadTimes {
 class DenoiseStage final : public Stage<SourcePacket> {
  public:
   DenoiseStage(denoise::Filter* filter, const PipelineOptions& o, NamedQueue<WindowItem>& out, StageMetrics& m)
-      : out_(out), m_(m), slicer_({o.window_us, o.hop_us, std::nullopt}, [this](const EventWindow& w) { emit(w); }) {
+      : filter_(filter),
+        out_(out),
+        m_(m),
+        slicer_({o.window_us, o.hop_us, std::nullopt}, [this](const EventWindow& w) { emit(w); }) {
     if (filter) stream_.emplace(*filter);
   }
 
@@ -125,6 +128,12 @@ class DenoiseStage final : public Stage<SourcePacket> {
       kept_.clear();
       stream_->push(p.batch, kept_);
       for (auto& b : kept_) accept(std::make_shared<const EventBatch>(std::move(b)));
+      // The filter belongs to this thread: its figures are copied out for stats() now and then (a few short
+      // strings twice a second), not read by the statistics thread.
+      if (const auto now = Clock::now(); now - last_report_ >= kReportPeriod) {
+        last_report_ = now;
+        take_report();
+      }
     } else {
       accept(p.batch);
     }
@@ -135,11 +144,17 @@ class DenoiseStage final : public Stage<SourcePacket> {
       kept_.clear();
       stream_->finish(kept_);
       for (auto& b : kept_) accept(std::make_shared<const EventBatch>(std::move(b)));
+      take_report();
     }
     slicer_.flush();
   }
 
   [[nodiscard]] std::uint64_t windows() const noexcept { return windows_.load(std::memory_order_relaxed); }
+  /// The filter's figures (denoise::Filter::report) as last copied: at most kReportPeriod old, final after finish().
+  [[nodiscard]] std::vector<denoise::ReportItem> report() const {
+    std::lock_guard lock(report_mu_);
+    return report_;
+  }
 
  private:
   void accept(EventBatchPtr b) {
@@ -164,9 +179,20 @@ class DenoiseStage final : public Stage<SourcePacket> {
     }
   }
 
+  void take_report() {
+    auto r = filter_->report();
+    std::lock_guard lock(report_mu_);
+    report_ = std::move(r);
+  }
+
+  static constexpr std::chrono::milliseconds kReportPeriod{500};
+  denoise::Filter* filter_;
   NamedQueue<WindowItem>& out_;
   StageMetrics& m_;
   std::optional<denoise::FilteredStream> stream_;
+  Clock::time_point last_report_{};
+  mutable std::mutex report_mu_;
+  std::vector<denoise::ReportItem> report_;
   TimeSlicer slicer_;
   std::vector<EventBatch> kept_;
   ReadTimes read_times_;
@@ -416,6 +442,7 @@ struct Pipeline::Impl {
     s.windows = denoise_stage.windows();
     s.denoise_events_in = s.stages[1].events_in;
     s.denoise_events_kept = s.stages[1].events_out;
+    s.denoise_report = denoise_stage.report();
     s.poses_published = s.stages[3].items_out;
     s.latency_event_to_publish_ns = latency_event.summary();
     s.latency_window_to_publish_ns = latency_window.summary();
@@ -591,10 +618,6 @@ const StreamStats& Pipeline::stream_stats() const noexcept {
 
 const SourceStats& Pipeline::source_stats() const noexcept {
   return impl_->source->stats();
-}
-
-std::vector<denoise::ReportItem> Pipeline::denoise_report() const {
-  return impl_->filter ? impl_->filter->report() : std::vector<denoise::ReportItem>{};
 }
 
 }  // namespace evpipe::pipeline

@@ -158,7 +158,15 @@ evpipe::stats_t to_lcm(const StatsRecord& r) {
     w.fill_max = q.fill_max;
     w.pushed = q.pushed;
     w.dropped = q.dropped;
+    w.events_budget = q.events_budget;
+    w.events = q.events;
+    w.events_max = q.events_max;
     m.queues.push_back(std::move(w));
+  }
+  m.num_denoise_figures = count_i32(r.denoise_figures.size(), "denoise_figures");
+  for (const auto& [name, value] : r.denoise_figures) {
+    m.denoise_figure_names.push_back(name);
+    m.denoise_figures.push_back(value);
   }
   return m;
 }
@@ -169,6 +177,11 @@ StatsRecord from_lcm(const evpipe::stats_t& m) {
   }
   if (m.num_queues < 0 || static_cast<std::size_t>(m.num_queues) != m.queues.size()) {
     throw DecodeError(fmt::format("stats_t.num_queues: {} but {} queues", m.num_queues, m.queues.size()));
+  }
+  if (m.num_denoise_figures < 0 || static_cast<std::size_t>(m.num_denoise_figures) != m.denoise_figures.size() ||
+      m.denoise_figure_names.size() != m.denoise_figures.size()) {
+    throw DecodeError(fmt::format("stats_t.num_denoise_figures: {} but {} names and {} values", m.num_denoise_figures,
+                                  m.denoise_figure_names.size(), m.denoise_figures.size()));
   }
   StatsRecord r;
   r.utime_us = m.utime;
@@ -189,7 +202,11 @@ StatsRecord from_lcm(const evpipe::stats_t& m) {
                         w.proc_p99_us, w.proc_max_us});
   }
   for (const evpipe::queue_stats_t& w : m.queues) {
-    r.queues.push_back({w.name, w.capacity, w.fill, w.fill_max, w.pushed, w.dropped});
+    r.queues.push_back(
+        {w.name, w.capacity, w.fill, w.fill_max, w.pushed, w.dropped, w.events_budget, w.events, w.events_max});
+  }
+  for (std::size_t i = 0; i < m.denoise_figures.size(); ++i) {
+    r.denoise_figures.emplace_back(m.denoise_figure_names[i], m.denoise_figures[i]);
   }
   return r;
 }

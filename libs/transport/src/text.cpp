@@ -134,10 +134,19 @@ std::string to_json(const StatsRecord& r, std::string_view channel) {
     if (i) o += ',';
     o += "{\"name\":";
     put_str(o, q.name);
-    fmt::format_to(std::back_inserter(o), ",\"capacity\":{},\"fill\":{},\"fill_max\":{},\"pushed\":{},\"dropped\":{}}}",
-                   q.capacity, q.fill, q.fill_max, q.pushed, q.dropped);
+    fmt::format_to(std::back_inserter(o),
+                   ",\"capacity\":{},\"fill\":{},\"fill_max\":{},\"pushed\":{},\"dropped\":{},\"events_budget\":{},"
+                   "\"events\":{},\"events_max\":{}}}",
+                   q.capacity, q.fill, q.fill_max, q.pushed, q.dropped, q.events_budget, q.events, q.events_max);
   }
-  o += "]}";
+  o += "],\"denoise_figures\":{";
+  for (std::size_t i = 0; i < r.denoise_figures.size(); ++i) {
+    if (i) o += ',';
+    put_str(o, r.denoise_figures[i].first);
+    o += ':';
+    put_num(o, r.denoise_figures[i].second);
+  }
+  o += "}}";
   return o;
 }
 
@@ -163,6 +172,11 @@ std::string to_text(const StatsRecord& r, std::string_view channel) {
   }
   for (const QueueStatsRecord& q : r.queues) {
     fmt::format_to(std::back_inserter(o), " | {} {}/{} dropped={}", q.name, q.fill, q.capacity, q.dropped);
+    if (q.events_budget > 0) fmt::format_to(std::back_inserter(o), " events={}/{}", q.events, q.events_budget);
+  }
+  for (const auto& [name, value] : r.denoise_figures) {
+    if (name.ends_with("noise_rate_hz")) fmt::format_to(std::back_inserter(o), " | {}={:.3f}", name, value);
+    if (name.ends_with("density_threshold_used")) fmt::format_to(std::back_inserter(o), " {}={:.0f}", name, value);
   }
   return o;
 }

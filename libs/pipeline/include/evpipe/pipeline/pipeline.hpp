@@ -111,6 +111,9 @@ struct PipelineStats {
   std::uint64_t windows = 0;        ///< windows emitted by the slicer
   std::uint64_t denoise_events_in = 0;
   std::uint64_t denoise_events_kept = 0;
+  /// The filter's own figures (denoise::Filter::report(); curvature: noise_rate_hz, density_threshold_used, ...),
+  /// copied by the denoise thread every 500 ms and at its end; empty without a filter.
+  std::vector<denoise::ReportItem> denoise_report;
   std::uint64_t poses_published = 0;
   /// Newest event of a window read -> publish_pose() returned (includes the wait for the window to complete and
   /// the denoiser's look-ahead).
@@ -194,9 +197,6 @@ class Pipeline {
   [[nodiscard]] const StreamStats& stream_stats() const noexcept;
   /// The source's own counters. Only after join().
   [[nodiscard]] const SourceStats& source_stats() const noexcept;
-  /// The filter's own figures (denoise::Filter::report(): the curvature filter's noise-rate estimate and the
-  /// density threshold in force, ...); empty without a filter. Only after join() (the denoise thread owns it).
-  [[nodiscard]] std::vector<denoise::ReportItem> denoise_report() const;
 
   struct Impl;
 

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace evpipe::transport {
@@ -67,6 +68,9 @@ struct QueueStatsRecord {
   std::int32_t fill_max{0};  ///< highest fill during the last interval
   std::int64_t pushed{0};
   std::int64_t dropped{0};
+  std::int64_t events_budget{0};  ///< bound on the events queued; 0 = none
+  std::int64_t events{0};         ///< events queued (0 without a bound)
+  std::int64_t events_max{0};     ///< most events queued at once since the start (0 without a bound)
 };
 
 /// Pipeline statistics, published at least once a second.
@@ -88,6 +92,8 @@ struct StatsRecord {
   double latency_p99_us{0.0};
   std::vector<StageStatsRecord> stages;
   std::vector<QueueStatsRecord> queues;
+  /// The denoising filter's own figures (name, value), e.g. noise_rate_hz, density_threshold_used.
+  std::vector<std::pair<std::string, double>> denoise_figures;
 };
 
 /// Host wall clock now, us since the Unix epoch (the utime of LCM messages).
