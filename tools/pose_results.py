@@ -30,6 +30,7 @@ import concurrent.futures as cf
 import hashlib
 import json
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -192,14 +193,14 @@ def evaluate(ctx: Ctx, poses: Path, gt: Path, extra: list[str]) -> dict:
     return json_object(r.stdout, "evpose-eval")
 
 
-def run_config(ctx: Ctx, out_dir: Path, label: str, params: str | None) -> str | None:
-    """The evpipe --config of a run: --config FILE as given, plus the filter's denoise.params when it has some."""
+def run_config(ctx: Ctx, path: Path, label: str, params: str | None) -> str | None:
+    """The evpipe --config of a run: --config FILE as given, plus the filter's denoise.params (written to `path`,
+    one file per run: runs go in parallel) when it has some."""
     if params is None:
         return ctx.config
     base = Path(ctx.config).read_text() if ctx.config else ""
-    if any(line.startswith("denoise:") for line in base.splitlines()):
+    if any(re.match(r"\s*denoise\s*:", line) for line in base.splitlines()):
         raise Failure(f"--config {ctx.config} has a denoise section; the {label} rows set denoise.params themselves")
-    path = out_dir / f"config-{label}.yaml"
     path.write_text(base + f"\ndenoise: {{params: {params}}}\n")
     return str(path)
 
@@ -212,7 +213,7 @@ def run_one(ctx: Ctx, scene: Path, s: Scene, label: str, denoise: str, params: s
     cmd = [ctx.evpipe, "--replay", str(scene), "--speed", "max", "--camera", str(scene.with_suffix(".camera.yaml")),
            "--model", str(scene.with_suffix(".model.yaml")), "--prior", str(scene.with_suffix(".prior.yaml")),
            "--poses-out", str(poses), "--denoise", denoise, "--json", "--no-progress"]
-    config = run_config(ctx, out_dir, label, params)
+    config = run_config(ctx, out_dir / f"{s.name}.{label}.config.yaml", label, params)
     if config:
         cmd[1:1] = ["--config", config]
     cmd += ctx.evpipe_args
@@ -543,7 +544,7 @@ def main() -> None:
         + ", ".join(f"**{label}** (`--denoise {d}`" + (f", `denoise.params: {p}`" if p else "") + ")"
                     for label, d, p in filters)
         + ". `curvature` runs with evpipe's defaults for it (`singular: keep`; the density threshold follows the "
-        "measured noise rate, at most the paper's 5: docs/algorithms.md, \"Curvature filter in the pipeline\"); "
+        "measured noise rate, at most the paper's 5: docs/algorithms.md, \"Singular fits\" and \"Adaptive threshold\"); "
         "`curvature-paper` with the paper's fixed threshold 5.",
         "",
     ]

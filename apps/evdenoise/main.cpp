@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -179,8 +180,14 @@ class TimedFilter final : public denoise::Filter {
   [[nodiscard]] bool has_score() const noexcept override { return filter_->has_score(); }
   [[nodiscard]] std::vector<denoise::ReportItem> report() const override { return filter_->report(); }
   void set_parallelism(int tasks, denoise::TaskRunner runner) override {
-    filter_->set_parallelism(tasks, std::move(runner));
+    // Counts the calls that really split work (a filter that cannot split never calls the runner).
+    filter_->set_parallelism(tasks, [this, runner = std::move(runner)](int count, const std::function<void(int)>& f) {
+      if (count > 1) ++parallel_runs_;
+      runner(count, f);
+    });
   }
+  /// Calls of the runner with more than one task (--threads > 1 and a filter that splits its blocks).
+  [[nodiscard]] std::uint64_t parallel_runs() const noexcept { return parallel_runs_; }
 
   [[nodiscard]] double seconds() const { return std::chrono::duration<double>(elapsed_).count(); }
 
@@ -194,6 +201,7 @@ class TimedFilter final : public denoise::Filter {
 
   std::unique_ptr<denoise::Filter> filter_;
   std::chrono::steady_clock::duration elapsed_{};
+  std::uint64_t parallel_runs_ = 0;
 };
 
 int run(const Options& o) {
@@ -323,6 +331,7 @@ int run(const Options& o) {
     j.key("latency_us").value(filter.latency_us());
     j.key("max_pending_events").value(std::uint64_t{max_pending});
     j.key("threads").value(std::int64_t{o.threads});
+    j.key("parallel_runs").value(static_cast<std::int64_t>(filter.parallel_runs()));
     j.key("filter_s").value(filter.seconds());
     j.key("throughput_mev_s")
         .value(filter.seconds() > 0 ? std::optional<double>(static_cast<double>(cls.events_in) / filter.seconds() / 1e6)

@@ -85,10 +85,16 @@ TEST(RunConfig, PipelineFilterParamsAddEvpipesCurvatureDefaultsWhereUnset) {
             (Params{{"density_threshold", "6"}, {"singular", "keep"}}));
   EXPECT_EQ(params_of("denoise: {params: {adaptive: false, singular: reject}}"),
             (Params{{"adaptive", "false"}, {"singular", "reject"}}));
+  // A cap of the user's (0 = none) keeps adaptive on; adaptive set alone gets the cap; adaptive off gets none.
   EXPECT_EQ(params_of("denoise: {params: {curvature.adaptive_max_threshold: 0}}"),
-            (Params{{"curvature.adaptive_max_threshold", "0"}, {"singular", "keep"}}));
-  EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,curvature', params: {curvature.adaptive: true}}"),
-            (Params{{"curvature.adaptive", "true"}, {"curvature.singular", "keep"}}));
+            (Params{{"curvature.adaptive_max_threshold", "0"}, {"singular", "keep"}, {"adaptive", "true"}}));
+  EXPECT_EQ(params_of("denoise: {params: {adaptive_max_threshold: 7}}"),
+            (Params{{"adaptive_max_threshold", "7"}, {"singular", "keep"}, {"adaptive", "true"}}));
+  EXPECT_EQ(
+      params_of("denoise: {filter: 'hotpixel,curvature', params: {curvature.adaptive: true}}"),
+      (Params{
+          {"curvature.adaptive", "true"}, {"curvature.singular", "keep"}, {"curvature.adaptive_max_threshold", "5"}}));
+  EXPECT_EQ(params_of("denoise: {params: {adaptive: off}}"), (Params{{"adaptive", "off"}, {"singular", "keep"}}));
   // A bare key in a chain goes to the one filter that has it (curvature): it counts as set.
   EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,curvature', params: {singular: reject, density_threshold: 4}}"),
             (Params{{"singular", "reject"}, {"density_threshold", "4"}}));

@@ -647,6 +647,9 @@ TEST(Curvature, RegistryAndParameterRejection) {
   o.keep_fraction = 2;
   EXPECT_THROW(CurvatureFilter(o, kDavis346), std::invalid_argument);
   EXPECT_THROW(curvature_batch({}, o, kDavis346), std::invalid_argument);
+  CurvatureOptions cap;
+  cap.adaptive_max_threshold = 1;
+  EXPECT_THROW(CurvatureFilter(cap, kDavis346), std::invalid_argument);
   // Accepted values build.
   EXPECT_NE(make_filter("curvature", {{"radius", "4"}, {"mode", "causal"}, {"backend", "flann"}}, kDavis346), nullptr);
 }

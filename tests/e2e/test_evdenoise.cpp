@@ -286,12 +286,19 @@ TEST(Evdenoise, ThreadsGiveTheSameOutput) {
     ASSERT_EQ(r3.status, 0) << args << ": " << r3.err;
     EXPECT_EQ(parse_json(r1.out).at("threads").num(), 1);
     EXPECT_EQ(parse_json(r3.out).at("threads").num(), 3);
+    EXPECT_EQ(parse_json(r1.out).at("parallel_runs").num(), 0) << args;
+    EXPECT_GT(parse_json(r3.out).at("parallel_runs").num(), 0) << args << ": the blocks were not split";
     const auto a = io::read_all(one);
     const auto b = io::read_all(three);
     ASSERT_GT(a.events.size(), 0U) << args;
     EXPECT_TRUE(a.events == b.events) << args;
     EXPECT_EQ(parse_json(r1.out).at("events_kept").num(), parse_json(r3.out).at("events_kept").num()) << args;
   }
+  // Causal mode decides event by event: nothing to split.
+  const auto causal = run(kEvdenoise + " " + q(kSample) + " " + q((dir() / "threads-causal.aedat4").string()) +
+                          " --filter curvature --set mode=causal --threads 2 --metrics");
+  ASSERT_EQ(causal.status, 0) << causal.err;
+  EXPECT_EQ(parse_json(causal.out).at("parallel_runs").num(), 0);
   const std::string out = (dir() / "threads-0.aedat4").string();
   fs::remove(out);
   const auto r = run(kEvdenoise + " " + q(kSample) + " " + q(out) + " --filter curvature --threads 0");

@@ -278,6 +278,32 @@ TEST(PipelineGraph, ReplayWithTheCurvatureFilterEqualsTheSequentialWindows) {
   replay_equals_sequential(path, "hotpixel,curvature", o);
 }
 
+TEST(PipelineGraph, StatisticsCarryTheFiltersFiguresWhileRunning) {
+  // The denoise thread copies the filter's report out as it goes (not only at the end): a statistics message taken
+  // while the run is still going has it. The slow pose stage keeps the run going for ~0.4 s.
+  const auto batches = synthetic(21, 40, 2000);
+  RecordingProcessor processor;
+  processor.delay = std::chrono::microseconds(5000);
+  RecordingSink sink;
+  PipelineOptions o;
+  o.window_us = 10'000;
+  o.hop_us = 10'000;
+  o.stats_period = std::chrono::milliseconds(20);
+  // Density stage alone at threshold 1: every event kept, so that every window reaches the slow stage.
+  auto filter =
+      denoise::make_filter_chain("curvature", {{"density_threshold", "1"}, {"curvature", "false"}}, kDavis346);
+  Pipeline p(std::make_unique<VectorSource>(batches), std::move(filter), processor, sink, o);
+  ASSERT_FALSE(p.run());
+  EXPECT_GE(processor.windows.size(), 50u);
+  const auto during = std::find_if(sink.stats.begin(), sink.stats.end(), [](const PipelineStats& s) {
+    return s.running && s.denoise_events_in > 0 && !s.denoise_report.empty();
+  });
+  ASSERT_NE(during, sink.stats.end()) << sink.stats.size() << " statistics, none with the figures while running";
+  EXPECT_TRUE(std::any_of(during->denoise_report.begin(), during->denoise_report.end(),
+                          [](const denoise::ReportItem& i) { return i.key == "density_threshold_used"; }));
+  EXPECT_FALSE(sink.stats.back().denoise_report.empty());
+}
+
 TEST(PipelineGraph, ClockSegmentsAreWindowedAsSequentially) {
   const std::uint32_t seed = 7;
   SCOPED_TRACE("seed " + std::to_string(seed));

@@ -212,6 +212,23 @@ TEST(TransportCodec, ForeignAndTruncatedBytesAreNotDecoded) {
   EXPECT_FALSE(decode_pose(pose_bytes.data(), 4));
 }
 
+TEST(TransportCodec, ANegativeArrayLengthIsNotDecoded) {
+  // Right fingerprint, but the array lengths say -1 (another publisher's bug): no exception, no allocation storm.
+  for (const int field : {0, 1, 2}) {
+    evpipe::stats_t m = to_lcm(sample_stats());
+    if (field == 0) m.num_stages = -1, m.stages.clear();
+    if (field == 1) m.num_queues = -1, m.queues.clear();
+    if (field == 2) m.num_denoise_figures = 0, m.denoise_figure_names.clear(), m.denoise_figures.clear();
+    std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+    ASSERT_GE(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), 0) << field;
+    // The generated encoder refuses a negative string-array length: write it over the last field (big endian).
+    if (field == 2) std::fill(bytes.end() - 4, bytes.end(), std::uint8_t{0xff});
+    std::optional<StatsRecord> out;
+    EXPECT_NO_THROW(out = decode_stats(bytes.data(), bytes.size())) << field;
+    EXPECT_FALSE(out) << field;
+  }
+}
+
 TEST(TransportCodec, InvalidContentNamesTheField) {
   evpipe::pose_t m = to_lcm(PoseRecord{});
   m.orientation[0] = m.orientation[1] = m.orientation[2] = m.orientation[3] = 0.0;

@@ -208,9 +208,16 @@ std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params(
   };
   // Why these differ from the paper's Table 1 setting (evdenoise's defaults): docs/algorithms.md.
   if (!is_set("singular")) add("singular", "keep");
-  if (!is_set("adaptive") && !is_set("density_threshold") && !is_set("adaptive_max_threshold")) {
-    add("adaptive", "true");
-    add("adaptive_max_threshold", "5");
+  // A threshold of the user's stands as given. Otherwise adaptive is on unless turned off, and capped at the paper's
+  // 5 unless the user set a cap (so `{adaptive: true}` alone is capped too, and `{adaptive_max_threshold: 7}` alone
+  // is adaptive with that cap).
+  if (!is_set("density_threshold")) {
+    const bool adaptive_off = std::any_of(params.begin(), params.end(), [](const auto& kv) {
+      return (kv.first == "adaptive" || kv.first == "curvature.adaptive") &&
+             (kv.second == "false" || kv.second == "0" || kv.second == "no" || kv.second == "off");
+    });
+    if (!is_set("adaptive")) add("adaptive", "true");
+    if (!adaptive_off && !is_set("adaptive_max_threshold")) add("adaptive_max_threshold", "5");
   }
   return out;
 }

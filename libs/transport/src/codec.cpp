@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <exception>
 #include <limits>
 
 namespace evpipe::transport {
@@ -46,8 +47,13 @@ std::optional<Msg> decode_msg(const void* data, std::size_t size) {
     return std::nullopt;
   }
   Msg m;
-  // decode() checks the 8-byte fingerprint first and fails (< 0) on another type or truncated data.
-  if (m.decode(data, 0, static_cast<int>(size)) < 0) {
+  // decode() checks the 8-byte fingerprint first and fails (< 0) on another type or truncated data. A message of
+  // the right type with a negative or absurd array length makes the generated code's resize() throw: not ours either.
+  try {
+    if (m.decode(data, 0, static_cast<int>(size)) < 0) {
+      return std::nullopt;
+    }
+  } catch (const std::exception&) {
     return std::nullopt;
   }
   return m;

@@ -61,11 +61,11 @@ struct DenoiseConfig {
   int threads = 0;
 
   /// The parameters evpipe builds the filter with: `params`, plus evpipe's own defaults for the paper's curvature
-  /// filter where `params` leaves them unset (docs/algorithms.md, "Curvature filter in the pipeline"):
+  /// filter where `params` leaves them unset (docs/algorithms.md, "Singular fits" and "Adaptive threshold"):
   ///  * singular: keep — a thin edge's rank-deficient fit is kept (unless `singular` is set);
   ///  * adaptive: true, adaptive_max_threshold: 5 — the density threshold follows the measured noise rate but
-  ///    never rises above the paper's 5 (unless any of `adaptive`, `density_threshold`, `adaptive_max_threshold`
-  ///    is set: then the user's choice stands as given).
+  ///    never rises above the paper's 5. A `density_threshold` of the user's turns both off (a fixed threshold
+  ///    stays fixed); otherwise each is added unless set (`adaptive: false` needs no cap).
   /// Keys are looked for bare and as `curvature.KEY`; what is added is prefixed in a chain.
   [[nodiscard]] std::vector<std::pair<std::string, std::string>> pipeline_params() const;
 };

@@ -65,7 +65,7 @@ struct QueueStatsRecord {
   std::string name;
   std::int32_t capacity{0};
   std::int32_t fill{0};
-  std::int32_t fill_max{0};  ///< highest fill during the last interval
+  std::int32_t fill_max{0};  ///< highest fill since the start
   std::int64_t pushed{0};
   std::int64_t dropped{0};
   std::int64_t events_budget{0};  ///< bound on the events queued; 0 = none
