@@ -58,6 +58,8 @@ FILTERS = [
     FilterRun("hotpixel", "hotpixel", (), "online hot-pixel mask alone"),
 ]
 
+THROUGHPUT_RUNS = 3  # per cell of the throughput table (the best is shown)
+
 PAPER_TABLE1 = {  # residual noise events, paper Table 1
     "baf": [34, 246, 581, 1077],
     "knoise": [0, 13, 42, 106],
@@ -345,18 +347,27 @@ def section_throughput(ctx: Ctx, bench: Path | None) -> list[str]:
         inputs.append(("rotating-bar, 10 Hz/px", dense))
     lines += [
         "Mev/s of the filter alone (file reading and writing excluded) through `evdenoise --metrics`, one thread, "
-        "the build given to this script; single runs on a shared machine, so compare within a column.",
+        f"the build given to this script; best of {THROUGHPUT_RUNS} rounds over all cells on a shared machine, so "
+        "compare within a column.",
         "",
         "| filter | " + " | ".join(n for n, _ in inputs) + " | decision latency |",
         "|---|" + "---:|" * (len(inputs) + 1),
     ]
+    # Sequential (no other job competes for the CPU), best of THROUGHPUT_RUNS rounds over every cell: a short run on
+    # a shared machine is often slowed by a neighbour, and rounds spread each cell's runs over the whole section.
+    best: dict = {}
+    latency: dict = {}
+    for _ in range(THROUGHPUT_RUNS):
+        for f in FILTERS:
+            for _, path in inputs:
+                m = metrics(ctx, path, f)
+                v = m.get("throughput_mev_s")
+                if v is not None:
+                    best[(f.label, path)] = max(v, best.get((f.label, path), 0.0))
+                latency[f.label] = m.get("latency_us")
     for f in FILTERS:
-        cells = []
-        lat = None
-        for _, path in inputs:
-            m = metrics(ctx, path, f)  # sequential: no other job competes for the CPU
-            cells.append(fmt(m.get("throughput_mev_s"), 1))
-            lat = m.get("latency_us")
+        cells = [fmt(best.get((f.label, path)), 1) for _, path in inputs]
+        lat = latency.get(f.label)
         lines.append(f"| {f.label} | " + " | ".join(cells) + f" | {'n/a' if lat is None else f'{lat / 1000:.1f} ms'} |")
     lines.append("")
     if bench is not None and bench.exists():
