@@ -144,7 +144,7 @@ std::string pose_json(const PoseSummary& p) {
 
 namespace {
 std::string pipeline_json(const RunSummary& s) {
-  std::string o = ",\"denoise_report\":{";
+  std::string o = ",\"denoise_figures\":{";
   for (std::size_t i = 0; i < s.denoise_report.size(); ++i) {
     const double v = s.denoise_report[i].second;
     o += fmt::format("{}{}:{}", i ? "," : "", json_quote(s.denoise_report[i].first),
