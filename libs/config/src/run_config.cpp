@@ -198,26 +198,27 @@ std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params(
   }
   if (std::find(names.begin(), names.end(), "curvature") == names.end()) return out;
   const bool single = names.size() == 1;
-  // A bare key counts in a chain too: only curvature has these keys, so the chain gives them to it.
-  const auto is_set = [&](std::string_view key) {
-    return std::any_of(params.begin(), params.end(),
-                       [&](const auto& kv) { return kv.first == key || kv.first == "curvature." + std::string(key); });
+  // The user's value of `key`, bare or as curvature.KEY (a bare key counts in a chain too: only curvature has these
+  // keys, so the chain gives them to it); nullptr when unset.
+  const auto user_value = [&](std::string_view key) -> const std::string* {
+    for (const auto& [k, v] : params)
+      if (k == key || k == "curvature." + std::string(key)) return &v;
+    return nullptr;
   };
   const auto add = [&](std::string_view key, std::string value) {
     out.emplace_back(single ? std::string(key) : "curvature." + std::string(key), std::move(value));
   };
   // Why these differ from the paper's Table 1 setting (evdenoise's defaults): docs/algorithms.md.
-  if (!is_set("singular")) add("singular", "keep");
+  if (user_value("singular") == nullptr) add("singular", "keep");
   // A threshold of the user's stands as given. Otherwise adaptive is on unless turned off, and capped at the paper's
   // 5 unless the user set a cap (so `{adaptive: true}` alone is capped too, and `{adaptive_max_threshold: 7}` alone
   // is adaptive with that cap).
-  if (!is_set("density_threshold")) {
-    const bool adaptive_off = std::any_of(params.begin(), params.end(), [](const auto& kv) {
-      return (kv.first == "adaptive" || kv.first == "curvature.adaptive") &&
-             (kv.second == "false" || kv.second == "0" || kv.second == "no" || kv.second == "off");
-    });
-    if (!is_set("adaptive")) add("adaptive", "true");
-    if (!adaptive_off && !is_set("adaptive_max_threshold")) add("adaptive_max_threshold", "5");
+  if (user_value("density_threshold") == nullptr) {
+    const std::string* adaptive = user_value("adaptive");
+    const bool adaptive_off =
+        adaptive != nullptr && (*adaptive == "false" || *adaptive == "0" || *adaptive == "no" || *adaptive == "off");
+    if (adaptive == nullptr) add("adaptive", "true");
+    if (!adaptive_off && user_value("adaptive_max_threshold") == nullptr) add("adaptive_max_threshold", "5");
   }
   return out;
 }
