@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "evpipe/core/error.hpp"
+#include "evpipe/core/filter_chain.hpp"
 #include "evpipe/denoise/filter.hpp"
 #include "evpipe/denoise/filtered_stream.hpp"
 #include "evpipe/denoise/registry.hpp"
@@ -79,23 +80,13 @@ Settings parse_settings(const std::vector<std::string>& sets) {
   return out;
 }
 
-std::vector<std::string> chain_names(const std::string& spec) {
-  std::vector<std::string> names;
-  std::size_t start = 0;
-  while (true) {
-    const auto comma = spec.find(',', start);
-    names.push_back(spec.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-    if (comma == std::string::npos) return names;
-    start = comma + 1;
-  }
-}
-
 /// Every parameter of every stage with the value it runs with: the user's (NAME.KEY or KEY) or the default.
 /// make_filter_chain has already rejected unknown and ambiguous keys, so this mirrors its routing.
 std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::string>>>> effective_params(
     const std::string& spec, const Settings& settings) {
   std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::string>>>> stages;
-  for (const auto& name : chain_names(spec)) {
+  for (const std::string_view part : filter_chain_names(spec)) {
+    const std::string name(part);
     const denoise::FilterSpec* fs = denoise::find_filter(name);
     std::vector<std::pair<std::string, std::string>> values;
     if (fs != nullptr) {

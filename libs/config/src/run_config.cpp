@@ -10,6 +10,8 @@
 #include <map>
 #include <sstream>
 
+#include "evpipe/core/filter_chain.hpp"
+
 namespace evpipe::config {
 
 namespace {
@@ -190,12 +192,7 @@ RunConfig load_config(const std::string& path) {
 
 std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params() const {
   auto out = params;
-  std::vector<std::string> names;
-  for (std::size_t start = 0; start <= filter.size();) {
-    const auto comma = std::min(filter.find(',', start), filter.size());
-    names.push_back(filter.substr(start, comma - start));
-    start = comma + 1;
-  }
+  const auto names = filter_chain_names(filter);
   if (std::find(names.begin(), names.end(), "curvature") == names.end()) return out;
   const bool single = names.size() == 1;
   // The user's value of `key`, bare or as curvature.KEY (a bare key counts in a chain too: only curvature has these

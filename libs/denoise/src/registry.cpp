@@ -6,6 +6,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "evpipe/core/filter_chain.hpp"
 #include "evpipe/denoise/baf.hpp"
 #include "evpipe/denoise/chain.hpp"
 #include "evpipe/denoise/curvature.hpp"
@@ -69,20 +70,11 @@ bool knows(const FilterSpec& spec, std::string_view key) {
 }
 
 std::vector<std::string_view> split_chain(std::string_view spec) {
-  std::vector<std::string_view> names;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t comma = spec.find(',', start);
-    const std::string_view name = spec.substr(start, comma == std::string_view::npos ? spec.npos : comma - start);
-    if (name.empty()) {
-      throw std::invalid_argument(fmt::format("filter chain '{}': empty filter name", spec));
-    }
-    names.push_back(name);
-    if (comma == std::string_view::npos) {
-      return names;
-    }
-    start = comma + 1;
+  auto names = filter_chain_names(spec);
+  if (std::any_of(names.begin(), names.end(), [](std::string_view n) { return n.empty(); })) {
+    throw std::invalid_argument(fmt::format("filter chain '{}': empty filter name", spec));
   }
+  return names;
 }
 
 }  // namespace
