@@ -396,6 +396,34 @@ TEST(Curvature, GridFlannAndBatchAgreeOnRandomStreams) {
   }
 }
 
+TEST(Curvature, GridEqualsFlannWhenWindowsHoldManyEvents) {
+  // A 5×5 patch at ~2 events per pixel per ms: each per-site window holds 30–80 entries, so both ends of every
+  // window move by more than the 8 entries one compare covers (the index's long path), with ties.
+  for (const std::uint64_t seed : {11ULL, 12ULL}) {
+    std::mt19937_64 rng(seed);
+    std::vector<Event> ev;
+    for (int i = 0; i < 4000; ++i) {
+      const std::int64_t t = 2'000'000 + static_cast<std::int64_t>(rng() % 80'000);
+      ev.push_back({rng() % 4 == 0 ? t - t % 50 : t, static_cast<std::uint16_t>(100 + rng() % 5),
+                    static_cast<std::uint16_t>(50 + rng() % 5), rng() % 2 == 0});
+    }
+    sort_by_time(ev);
+    std::mt19937_64 cut_rng(seed * 31);
+    for (const auto mode : {CurvatureMode::stream, CurvatureMode::frames}) {
+      CurvatureOptions o;
+      o.mode = mode;
+      const std::string what = "seed " + std::to_string(seed) + " mode " + std::string(to_string(mode));
+      o.backend = NeighbourhoodBackend::grid;
+      const Outcome grid = run(o, ev, random_cuts(ev.size(), cut_rng, 700), true);
+      o.backend = NeighbourhoodBackend::flann;
+      const Outcome flann = run(o, ev, {}, true);
+      expect_same(grid, flann, what + " grid vs flann");
+      const auto max_count = *std::max_element(grid.trace.counts.begin(), grid.trace.counts.end());
+      EXPECT_GT(max_count, 40) << what;
+    }
+  }
+}
+
 // The runners a caller may pass: tasks in reverse order on this thread (any order must do), and one thread per
 // task (what the pipeline does, with a pool).
 void reversed_runner(int n, const std::function<void(int)>& task) {

