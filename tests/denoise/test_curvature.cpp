@@ -397,8 +397,9 @@ TEST(Curvature, GridFlannAndBatchAgreeOnRandomStreams) {
 }
 
 TEST(Curvature, GridEqualsFlannWhenWindowsHoldManyEvents) {
-  // A 5×5 patch at ~2 events per pixel per ms: each per-site window holds 30–80 entries, so both ends of every
-  // window move by more than the 8 entries one compare covers (the index's long path), with ties.
+  // A 5×5 patch at ~2 events per pixel per ms: each per-site window holds 30–80 entries, so the ends of a window
+  // move by more than the 8 entries one compare covers (the index's long path) at each pixel's first query and
+  // whenever a pixel's events are far apart; with ties. Mutating either long path fails this test.
   for (const std::uint64_t seed : {11ULL, 12ULL}) {
     std::mt19937_64 rng(seed);
     std::vector<Event> ev;

@@ -3,6 +3,7 @@
 // denoise registry (which rejects an empty name), evdenoise and the run configuration (which does not depend on
 // the denoise library).
 
+#include <cstddef>
 #include <string_view>
 #include <vector>
 
