@@ -92,6 +92,10 @@ struct LcmConfig {
   std::string pose_channel = "EVPIPE_POSE";  ///< channel of the pose messages
   std::string stats_channel = "EVPIPE_STATS";
   std::int64_t stats_period_ms = 1000;  ///< statistics message period
+  /// The preview for people (evpipe-view; preview_t, docs/operations.md "Watching the pipeline"): off by default.
+  bool preview = false;
+  double preview_hz = 10.0;  ///< previews per second when on (0.1-30)
+  std::string preview_channel = "EVPIPE_PREVIEW";
 };
 
 struct PipelineConfig {
