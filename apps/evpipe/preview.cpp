@@ -71,14 +71,18 @@ void PreviewWorker::offer(const EventWindow& window, const pose::PoseEstimate& e
   const bool every_window = video_ || options_.png_every > 0;
   const auto now = std::chrono::steady_clock::now();
   bool due = every_window;
-  if (!due && options_.lcm && options_.hz > 0)
-    due = index == 0 || now - last_offer_ >= std::chrono::duration<double>(1.0 / options_.hz);
+  if (!due && options_.lcm && options_.hz > 0) {
+    // On a grid of 1 / hz (host time), so that the rate is hz on average whatever the window hop.
+    const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(1.0 / options_.hz));
+    due = index == 0 || now >= next_offer_;
+    if (due) next_offer_ = (index == 0 || now - next_offer_ > period) ? now + period : next_offer_ + period;
+  }
   if (!due) {
     // Nothing pending: what is older than this window is not needed any more.
     if (tap_ && idle_.load(std::memory_order_acquire)) tap_->release_before(window.t0_us);
     return;
   }
-  last_offer_ = now;
   if (options_.lossless) {
     // Replay with --video / --png-every: every window, in order; the pose thread waits for room (replay only).
     std::unique_lock lock(mutex_);
@@ -167,7 +171,9 @@ void PreviewWorker::build(const Job& job) {
   }
   // Every window is built for a video; LCM still gets at most preview_hz of them.
   const auto now = std::chrono::steady_clock::now();
-  if (publisher_ && (index == 0 || now - last_publish_ >= std::chrono::duration<double>(1.0 / options_.hz))) {
+  const bool every_window = video_ || options_.png_every > 0;  // else offer() has already kept to preview_hz
+  if (publisher_ &&
+      (!every_window || index == 0 || now - last_publish_ >= std::chrono::duration<double>(1.0 / options_.hz))) {
     last_publish_ = now;
     const bool ok = publisher_->publish(r);
     const auto c = publisher_->counters();

@@ -130,8 +130,8 @@ class PreviewWorker {
   std::unique_ptr<transport::PreviewPublisher> publisher_;
   std::unique_ptr<view::VideoOut> video_;
 
-  std::chrono::steady_clock::time_point last_offer_{};
-  std::uint64_t windows_offered_ = 0;  // pose thread only
+  std::chrono::steady_clock::time_point next_offer_{};  // pose thread only
+  std::uint64_t windows_offered_ = 0;                   // pose thread only
   std::atomic<std::int64_t> last_latency_ns_{0};
   std::atomic<std::uint64_t> dropped_busy_{0};            ///< hand-offs that found the lock taken
   std::chrono::steady_clock::time_point last_publish_{};  // builder thread only
