@@ -64,18 +64,22 @@ std::vector<transport::PreviewSegment> project_model(const camera::CameraModel& 
                                                      const camera::Pose& T_cam_model) {
   constexpr double kPiece_px = 16.0;
   constexpr int kMaxPieces = 16;
+  // Pieces per line shrink with the model's size, so that a large CAD model stays within kMaxPreviewSegments.
+  const int lines = std::max<int>(static_cast<int>(model.segments_m.size()), 1);
+  const int max_pieces = std::clamp(kMaxPreviewSegments / lines, 1, kMaxPieces);
   std::vector<transport::PreviewSegment> out;
   const auto add = [&out](const camera::Segment2& s) {
     out.push_back({static_cast<float>(s.a_px.x()), static_cast<float>(s.a_px.y()), static_cast<float>(s.b_px.x()),
                    static_cast<float>(s.b_px.y())});
   };
   for (const auto& seg : model.segments_m) {
+    if (out.size() >= static_cast<std::size_t>(kMaxPreviewSegments)) break;  // a model of more lines than that
     const auto chord = camera::project_segment(camera, T_cam_model, seg);
     if (!chord) continue;
     const double len = (chord->b_px - chord->a_px).norm();
     if (!std::isfinite(len)) continue;
     const int pieces =
-        camera.has_distortion() ? std::clamp(static_cast<int>(std::ceil(len / kPiece_px)), 1, kMaxPieces) : 1;
+        camera.has_distortion() ? std::clamp(static_cast<int>(std::ceil(len / kPiece_px)), 1, max_pieces) : 1;
     if (pieces == 1) {
       add(*chord);
       continue;

@@ -17,6 +17,9 @@ namespace evpipe::view {
 /// to 25 000 bytes of image (2 bits a pixel) whatever the sensor.
 inline constexpr int kMaxPreviewPixels = 100'000;
 
+/// At most this many model segments per preview (16 bytes each on the wire: 32 kB).
+inline constexpr int kMaxPreviewSegments = 2048;
+
 /// The preview image of a sensor: its size, binned so that it holds at most kMaxPreviewPixels pixels.
 struct PreviewGrid {
   int bin = 1;
@@ -34,8 +37,9 @@ std::int64_t mark_raw(transport::PreviewRecord& r, EventSpan events, std::int64_
 std::int64_t mark_kept(transport::PreviewRecord& r, EventSpan events);
 
 /// The model's segments projected at T_cam_model, distortion applied: a segment whose chord is long is cut into
-/// pieces of about 16 pixels (at most 16), each projected as a chord, so that a distorted line is drawn curved.
-/// Segments behind the camera are clipped (camera::project_segment).
+/// pieces of about 16 pixels (at most 16, fewer for a model of many lines), each projected as a chord, so that a
+/// distorted line is drawn curved. Segments behind the camera are clipped (camera::project_segment). At most
+/// kMaxPreviewSegments (a model with more lines is drawn in part).
 [[nodiscard]] std::vector<transport::PreviewSegment> project_model(const camera::CameraModel& camera,
                                                                    const camera::LineModel& model,
                                                                    const camera::Pose& T_cam_model);
