@@ -89,6 +89,7 @@ void PreviewWorker::offer(const EventWindow& window, const pose::PoseEstimate& e
     cv_.wait(lock, [this] { return queue_.size() < 4 || stop_; });
     queue_.push_back({window, estimate});
     idle_.store(false, std::memory_order_release);
+    release_locked();
   } else {
     std::unique_lock lock(mutex_, std::try_to_lock);
     if (!lock.owns_lock()) {
@@ -101,8 +102,16 @@ void PreviewWorker::offer(const EventWindow& window, const pose::PoseEstimate& e
     }
     queue_.push_back({window, estimate});
     idle_.store(false, std::memory_order_release);
+    release_locked();
   }
   cv_.notify_one();
+}
+
+void PreviewWorker::release_locked() {
+  if (!tap_ || queue_.empty()) return;
+  std::int64_t needed = queue_.front().window.t0_us;
+  if (building_t0_us_) needed = std::min(needed, *building_t0_us_);
+  tap_->release_before(needed);
 }
 
 void PreviewWorker::run() {
@@ -115,6 +124,7 @@ void PreviewWorker::run() {
       if (queue_.empty()) return;  // stopped and drained
       job = std::move(queue_.front());
       queue_.pop_front();
+      building_t0_us_ = job.window.t0_us;
     }
     cv_.notify_all();  // room for a lossless producer
     try {
@@ -124,6 +134,7 @@ void PreviewWorker::run() {
       if (error_.empty()) error_ = e.what();
     }
     const std::lock_guard lock(mutex_);
+    building_t0_us_.reset();
     if (queue_.empty()) idle_.store(true, std::memory_order_release);
   }
 }

@@ -119,6 +119,8 @@ class PreviewWorker {
   };
   void run();
   void build(const Job& job);
+  /// With mutex_ held, after a push: the tap may release what no queued or running job needs.
+  void release_locked();
 
   PreviewOptions options_;
   RawTap* tap_;
@@ -141,6 +143,7 @@ class PreviewWorker {
   std::deque<Job> queue_;
   /// No job queued or being built: the pose thread may then let the tap release what is older than its window.
   std::atomic<bool> idle_{true};
+  std::optional<std::int64_t> building_t0_us_;  ///< window start of the job being built (guarded by mutex_)
   bool stop_ = false;
   PreviewCounters counters_;
   std::string error_;
