@@ -44,7 +44,7 @@ PreviewWorker::PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry
       tap_(tap),
       geometry_(geometry),
       hop_us_(hop_us),
-      camera_(std::move(camera)),
+      camera_(camera),
       model_(std::move(model)),
       sink_(sink) {
   if (options_.lcm) publisher_ = std::make_unique<transport::PreviewPublisher>(options_.lcm_url, options_.lcm_channel);

@@ -116,7 +116,7 @@ std::vector<std::uint8_t> encode(const PreviewRecord& r) {
   m.window_t0_us = r.window_t0_us;
   m.window_t1_us = r.window_t1_us;
   m.status = r.status;
-  m.pose_valid = r.pose_valid;
+  m.pose_valid = r.pose_valid ? 1 : 0;
   m.raw_events = r.raw_events;
   m.kept_events = r.kept_events;
   m.pose_events = r.pose_events;

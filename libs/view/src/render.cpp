@@ -12,14 +12,14 @@ namespace {
 constexpr int kLine_px = 18;
 constexpr int kBandLines = 3;
 constexpr double kFontScale = 0.45;
-const cv::Scalar kTextColour{230, 230, 230};
+constexpr Colour kTextColour{230, 230, 230};
 
-cv::Scalar scalar(const cv::Vec3b& c) {
-  return cv::Scalar(c[0], c[1], c[2]);
+cv::Scalar scalar(const Colour& c) {
+  return {static_cast<double>(c.b), static_cast<double>(c.g), static_cast<double>(c.r)};
 }
 }  // namespace
 
-cv::Vec3b model_colour(std::int8_t status) {
+Colour model_colour(std::int8_t status) {
   switch (status) {
     case transport::kPreviewStatusTracking:
       return kColourTracking;
@@ -63,7 +63,7 @@ cv::Mat render_preview(const transport::PreviewRecord& r, const RenderOptions& o
   for (int y = 0; y < r.height; ++y) {
     for (int x = 0; x < r.width; ++x) {
       const auto code = static_cast<transport::PreviewPixel>(r.pixels[static_cast<std::size_t>(y) * r.width + x]);
-      const cv::Vec3b* colour = nullptr;
+      const Colour* colour = nullptr;
       switch (code) {
         case transport::PreviewPixel::none:
           break;
@@ -97,7 +97,7 @@ cv::Mat render_preview(const transport::PreviewRecord& r, const RenderOptions& o
     if (options.paused) lines[2] = "PAUSED (space: resume, n: step)" + (lines[2].empty() ? "" : "  " + lines[2]);
     for (std::size_t i = 0; i < lines.size(); ++i) {
       cv::putText(img, lines[i], {6, top + kLine_px * static_cast<int>(i + 1)}, cv::FONT_HERSHEY_SIMPLEX, kFontScale,
-                  i == 0 ? model : kTextColour, 1, cv::LINE_8);
+                  i == 0 ? model : scalar(kTextColour), 1, cv::LINE_8);
     }
   }
   return img;
@@ -105,9 +105,10 @@ cv::Mat render_preview(const transport::PreviewRecord& r, const RenderOptions& o
 
 cv::Mat render_message(cv::Size size, const std::string& line1, const std::string& line2) {
   cv::Mat img(size, CV_8UC3, cv::Scalar(20, 20, 20));
-  cv::putText(img, line1, {10, size.height / 2 - 10}, cv::FONT_HERSHEY_SIMPLEX, kFontScale, kTextColour, 1, cv::LINE_8);
+  cv::putText(img, line1, {10, size.height / 2 - 10}, cv::FONT_HERSHEY_SIMPLEX, kFontScale, scalar(kTextColour), 1,
+              cv::LINE_8);
   if (!line2.empty())
-    cv::putText(img, line2, {10, size.height / 2 + 12}, cv::FONT_HERSHEY_SIMPLEX, kFontScale, kTextColour, 1,
+    cv::putText(img, line2, {10, size.height / 2 + 12}, cv::FONT_HERSHEY_SIMPLEX, kFontScale, scalar(kTextColour), 1,
                 cv::LINE_8);
   return img;
 }

@@ -21,17 +21,22 @@ struct RenderOptions {
   bool paused = false;      ///< marks the band "PAUSED"
 };
 
-// BGR colours.
-inline const cv::Vec3b kColourBackground{0, 0, 0};
-inline const cv::Vec3b kColourRaw{80, 80, 80};
-inline const cv::Vec3b kColourKeptOn{255, 170, 40};   // azure
-inline const cv::Vec3b kColourKeptOff{230, 60, 230};  // violet
-inline const cv::Vec3b kColourTracking{0, 220, 0};    // green
-inline const cv::Vec3b kColourHolding{0, 170, 255};   // amber
-inline const cv::Vec3b kColourLost{0, 0, 255};        // red (lost, initialising)
+/// A BGR colour (constexpr; converts to cv::Vec3b).
+struct Colour {
+  std::uint8_t b = 0, g = 0, r = 0;
+  // NOLINTNEXTLINE(google-explicit-constructor): used where OpenCV wants a pixel value
+  operator cv::Vec3b() const { return {b, g, r}; }
+};
+inline constexpr Colour kColourBackground{0, 0, 0};
+inline constexpr Colour kColourRaw{80, 80, 80};
+inline constexpr Colour kColourKeptOn{255, 170, 40};   // azure
+inline constexpr Colour kColourKeptOff{230, 60, 230};  // violet
+inline constexpr Colour kColourTracking{0, 220, 0};    // green
+inline constexpr Colour kColourHolding{0, 170, 255};   // amber
+inline constexpr Colour kColourLost{0, 0, 255};        // red (lost, initialising)
 
 /// The model's colour for a wire status (3 = holding, see transport::kPreviewStatusHolding).
-[[nodiscard]] cv::Vec3b model_colour(std::int8_t status);
+[[nodiscard]] Colour model_colour(std::int8_t status);
 /// Height of the status band in output pixels (0 without it).
 [[nodiscard]] int status_band_height(const RenderOptions& options);
 /// Output size for a frame of this image size.
