@@ -10,6 +10,10 @@
 // 2 usage error (also no display for a window).
 
 #include <fmt/format.h>
+#include <netdb.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
 #include <CLI/CLI.hpp>
 
 #include <chrono>
@@ -54,6 +58,53 @@ struct Cli {
   bool headless = false;
 };
 
+/// Whether the X display named by $DISPLAY accepts a connection. OpenCV's Qt backend aborts the process when it
+/// cannot connect, so evpipe-view asks first: ":N" is the socket /tmp/.X11-unix/XN, "host:N" TCP port 6000 + N
+/// (ssh -X forwards such a display).
+bool x_display_reachable(const std::string& display, std::string& why) {
+  const auto colon = display.rfind(':');
+  if (colon == std::string::npos) {
+    why = "DISPLAY='" + display + "' is not of the form [host]:N";
+    return false;
+  }
+  const std::string host = display.substr(0, colon);
+  int n = 0;
+  try {
+    n = std::stoi(display.substr(colon + 1));
+  } catch (const std::exception&) {
+    why = "DISPLAY='" + display + "' has no display number";
+    return false;
+  }
+  if (host.empty() || host == "unix") {
+    const int fd = ::socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    const std::string path = "/tmp/.X11-unix/X" + std::to_string(n);
+    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
+    const bool ok = fd >= 0 && ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) == 0;
+    if (fd >= 0) ::close(fd);
+    if (!ok) why = "no X server answers on " + path;
+    return ok;
+  }
+  addrinfo hints{};
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* res = nullptr;
+  if (::getaddrinfo(host.c_str(), std::to_string(6000 + n).c_str(), &hints, &res) != 0 || res == nullptr) {
+    why = "cannot resolve the display host '" + host + "'";
+    return false;
+  }
+  bool ok = false;
+  for (addrinfo* a = res; a != nullptr && !ok; a = a->ai_next) {
+    const int fd = ::socket(a->ai_family, a->ai_socktype, a->ai_protocol);
+    if (fd < 0) continue;
+    ok = ::connect(fd, a->ai_addr, a->ai_addrlen) == 0;
+    ::close(fd);
+  }
+  ::freeaddrinfo(res);
+  if (!ok) why = "no X server answers on " + host + " port " + std::to_string(6000 + n);
+  return ok;
+}
+
 std::string join(const std::set<std::string>& names) {
   std::string s;
   for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
@@ -68,6 +119,13 @@ int run(const Cli& cli) {
                  "evpipe-view: no display (DISPLAY is not set): run it on a desktop, under xvfb-run, or with "
                  "--headless and --screenshot / --video\n");
     return 2;
+  }
+  if (const char* d = std::getenv("DISPLAY"); want_window && d != nullptr && *d != '\0') {
+    std::string why;
+    if (!x_display_reachable(d, why)) {
+      std::fprintf(stderr, "evpipe-view: no display: %s (DISPLAY=%s); use xvfb-run or --headless\n", why.c_str(), d);
+      return 2;
+    }
   }
   if (cli.headless && cli.screenshot.empty() && cli.video.empty()) {
     std::fprintf(stderr, "evpipe-view: --headless needs --screenshot or --video (nothing would be shown)\n");

@@ -185,6 +185,7 @@ int run(const Cli& cli) {
   }
   // The preview (LCM preview_t, --video, --png-every) sees the raw events through this wrapper (preview.hpp).
   const bool preview_lcm = cfg.lcm.preview && cfg.lcm.enabled;
+  if (cfg.lcm.preview && !cfg.lcm.enabled) spdlog::warn("LCM preview: off, because LCM is off (--no-lcm, lcm.enabled)");
   app::RawTap* tap = nullptr;
   if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
     auto t = std::make_unique<app::RawTap>(std::move(source));

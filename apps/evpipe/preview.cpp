@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 
 #include "evpipe/pipeline/background_task.hpp"
 #include "evpipe/view/frame.hpp"
@@ -48,10 +47,12 @@ PreviewWorker::PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry
       model_(std::move(model)),
       sink_(sink) {
   if (options_.lcm) publisher_ = std::make_unique<transport::PreviewPublisher>(options_.lcm_url, options_.lcm_channel);
+  if (!options_.video.empty() || options_.png_every > 0) output_ = std::make_unique<view::FrameOutput>();
   if (!options_.video.empty()) {
     const double fps =
         options_.video_fps > 0 ? options_.video_fps : 1e6 / static_cast<double>(std::max<std::int64_t>(hop_us_, 1));
-    video_ = std::make_unique<view::VideoOut>(options_.video, fps);
+    output_->open_video(options_.video, fps);
+    video_ = true;
   }
   if (options_.png_every > 0) std::filesystem::create_directories(options_.png_dir);
   thread_ = std::thread([this] { run(); });
@@ -198,21 +199,21 @@ void PreviewWorker::build(const Job& job) {
     view::RenderOptions ro;
     ro.zoom = options_.zoom;
     const cv::Mat img = view::render_preview(r, ro);
-    if (video_) video_->write(img);
+    if (video_) output_->write_video(img);
     if (options_.png_every > 0 && index % static_cast<std::uint64_t>(options_.png_every) == 0) {
-      const auto path = std::filesystem::path(options_.png_dir) / fmt::format("evpipe-{:06}.png", index);
-      if (!cv::imwrite(path.string(), img))
-        throw std::runtime_error(fmt::format("{}: cannot write PNG", path.string()));
+      output_->write_png((std::filesystem::path(options_.png_dir) / fmt::format("evpipe-{:06}.png", index)).string(),
+                         img);
       const std::lock_guard lock(mutex_);
       ++counters_.pngs;
     }
     if (video_) {
+      const auto info = output_->video_info();
       const std::lock_guard lock(mutex_);
-      counters_.video_frames = static_cast<std::uint64_t>(video_->frames());
-      counters_.video_path = video_->path();
-      counters_.video_codec = video_->codec();
-      counters_.video_width = video_->size().width;
-      counters_.video_height = video_->size().height;
+      counters_.video_frames = static_cast<std::uint64_t>(info.frames);
+      counters_.video_path = info.path;
+      counters_.video_codec = info.codec;
+      counters_.video_width = info.width;
+      counters_.video_height = info.height;
     }
   }
 }
@@ -224,7 +225,7 @@ void PreviewWorker::finish() {
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
-  if (video_) video_->close();
+  if (video_) output_->close_video();
   const std::lock_guard lock(mutex_);
   if (!error_.empty()) throw std::runtime_error(error_);
 }

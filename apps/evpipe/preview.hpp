@@ -31,7 +31,7 @@
 #include "evpipe/core/source.hpp"
 #include "evpipe/pose/estimator.hpp"
 #include "evpipe/transport/preview.hpp"
-#include "evpipe/view/video.hpp"
+#include "evpipe/view/output.hpp"
 
 namespace evpipe::app {
 
@@ -107,6 +107,7 @@ class PreviewWorker {
   void note_published(std::int64_t latency_ns) noexcept {
     last_latency_ns_.store(latency_ns, std::memory_order_relaxed);
   }
+  /// Throws std::runtime_error when --video / --png-every cannot load their output module (view::FrameOutput).
   /// After the pipeline joined: builds what is queued, stops the thread, closes the video. Throws
   /// std::runtime_error when the video could not be written.
   void finish();
@@ -130,7 +131,8 @@ class PreviewWorker {
   std::optional<camera::LineModel> model_;
   const AppSink* sink_;
   std::unique_ptr<transport::PreviewPublisher> publisher_;
-  std::unique_ptr<view::VideoOut> video_;
+  std::unique_ptr<view::FrameOutput> output_;  ///< loaded for --video / --png-every only
+  bool video_ = false;
 
   std::chrono::steady_clock::time_point next_offer_{};  // pose thread only
   std::uint64_t windows_offered_ = 0;                   // pose thread only

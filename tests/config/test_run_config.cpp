@@ -156,3 +156,17 @@ TEST(RunConfig, DenoiseThreads) {
   EXPECT_NE(error_of("denoise: {threads: many}").find("denoise.threads: expected a number or 'auto', got 'many'"),
             std::string::npos);
 }
+
+TEST(RunConfig, LcmPreviewKeys) {  // issue 22: off by default, 10 Hz when on
+  const evpipe::config::RunConfig defaults;
+  EXPECT_FALSE(defaults.lcm.preview);
+  EXPECT_DOUBLE_EQ(defaults.lcm.preview_hz, 10.0);
+  EXPECT_EQ(defaults.lcm.preview_channel, "EVPIPE_PREVIEW");
+  const auto c = parse_config("lcm: {preview: true, preview_hz: 2.5, preview_channel: VIEW}\n");
+  EXPECT_TRUE(c.lcm.preview);
+  EXPECT_DOUBLE_EQ(c.lcm.preview_hz, 2.5);
+  EXPECT_EQ(c.lcm.preview_channel, "VIEW");
+  EXPECT_EQ(parse_config(c.to_yaml()).to_yaml(), c.to_yaml());
+  EXPECT_NE(error_of("lcm: {preview_hz: 100}").find("lcm.preview_hz: must be in [0.1, 30]"), std::string::npos);
+  EXPECT_NE(error_of("lcm: {preview_channel: ''}").find("lcm.preview_channel: must not be empty"), std::string::npos);
+}
