@@ -37,8 +37,8 @@ std::string stem() {
 
 std::string pose_args(const std::string& csv) {
   const std::string s = stem();
-  return " --replay " + q(s + ".aedat4") + " --camera " + q(s + ".camera.yaml") + " --model " +
-         q(s + ".model.yaml") + " --prior " + q(s + ".prior.yaml") + " --poses-out " + q(csv) + " --no-progress";
+  return " --replay " + q(s + ".aedat4") + " --camera " + q(s + ".camera.yaml") + " --model " + q(s + ".model.yaml") +
+         " --prior " + q(s + ".prior.yaml") + " --poses-out " + q(csv) + " --no-progress";
 }
 
 pid_t spawn_shell(const std::string& cmd) {

@@ -48,8 +48,8 @@ class Files : public ::testing::Test {
   Result run(const std::string& cmd) const { return evpipe::testing::run("timeout 20 " + cmd, dir_); }
   // evpipe with every input it takes (copies in the test's folder) and `extra` options.
   Result evpipe(const std::string& extra) const {
-    return run(kEvpipe + " --replay " + q(path("rh.aedat4")) + " --camera " + q(path("rh.camera.yaml")) +
-               " --model " + q(path("rh.model.yaml")) + " --prior " + q(path("rh.prior.yaml")) + " --ground-truth " +
+    return run(kEvpipe + " --replay " + q(path("rh.aedat4")) + " --camera " + q(path("rh.camera.yaml")) + " --model " +
+               q(path("rh.model.yaml")) + " --prior " + q(path("rh.prior.yaml")) + " --ground-truth " +
                q(path("rh.gt.csv")) + " --config " + q(path("evpipe.yaml")) + " --speed max --no-progress " + extra);
   }
   fs::path dir_;
@@ -87,8 +87,8 @@ TEST_F(Files, EvsimAndEvposeEvalRefuseToOverwriteTheirInputs) {
                      q(path("d.txt")) + " --no-manifest");
   EXPECT_NE(l.status, 0);
   EXPECT_THAT(l.err, HasSubstr("d.txt: is also an input of this program")) << l.err;
-  const auto e = run(kEvposeEval + " " + q(path("rh.gt.csv")) + " " + q(path("rh.gt.csv")) + " --png " +
-                     q(path("rh.gt.csv")));
+  const auto e =
+      run(kEvposeEval + " " + q(path("rh.gt.csv")) + " " + q(path("rh.gt.csv")) + " --png " + q(path("rh.gt.csv")));
   EXPECT_NE(e.status, 0);
   EXPECT_THAT(e.err, HasSubstr("refusing to overwrite it")) << e.err;
   EXPECT_EQ(slurp(path("rh.gt.csv")), slurp(source(".gt.csv")));
@@ -96,8 +96,8 @@ TEST_F(Files, EvsimAndEvposeEvalRefuseToOverwriteTheirInputs) {
 
 // Row 5: --poses-out (or an LCM log) naming one of evpipe's own inputs truncated it before it was read.
 TEST_F(Files, EvpipeOutputsNamingAnInputAreRefusedBeforeTruncating) {
-  for (const std::string name : {"rh.aedat4", "rh.camera.yaml", "rh.model.yaml", "rh.prior.yaml", "rh.gt.csv",
-                                 "evpipe.yaml"}) {
+  for (const std::string name :
+       {"rh.aedat4", "rh.camera.yaml", "rh.model.yaml", "rh.prior.yaml", "rh.gt.csv", "evpipe.yaml"}) {
     SCOPED_TRACE(name);
     const std::string before = slurp(path(name));
     const auto r = evpipe("--no-lcm --poses-out " + q(path(name)));
@@ -114,7 +114,8 @@ TEST_F(Files, EvpipeOutputsNamingAnInputAreRefusedBeforeTruncating) {
   EXPECT_EQ(h.status, 2);
   EXPECT_THAT(h.err, HasSubstr("is the same file as the input " + path("rh.gt.csv"))) << h.err;
   // The LCM log is not the poses CSV either.
-  const auto both = evpipe("--poses-out " + q(path("p.csv")) + " --lcm-url " + q("file://" + path("p.csv") + "?mode=w"));
+  const auto both =
+      evpipe("--poses-out " + q(path("p.csv")) + " --lcm-url " + q("file://" + path("p.csv") + "?mode=w"));
   EXPECT_EQ(both.status, 2);
   EXPECT_THAT(both.err, HasSubstr("refusing to overwrite it")) << both.err;
 }
@@ -127,8 +128,10 @@ TEST_F(Files, AFifoAsAnyInputFailsAtOnce) {
   const std::vector<std::string> commands = {
       kEvpipe + " --no-lcm --replay " + q(fifo),
       kEvpipe + " --no-lcm --replay " + q(rh + ".aedat4") + " --config " + q(fifo),
-      kEvpipe + " --no-lcm --replay " + q(rh + ".aedat4") + " --camera " + q(fifo) + " --model " + q(rh + ".model.yaml"),
-      kEvpipe + " --no-lcm --replay " + q(rh + ".aedat4") + " --camera " + q(rh + ".camera.yaml") + " --model " + q(fifo),
+      kEvpipe + " --no-lcm --replay " + q(rh + ".aedat4") + " --camera " + q(fifo) + " --model " +
+          q(rh + ".model.yaml"),
+      kEvpipe + " --no-lcm --replay " + q(rh + ".aedat4") + " --camera " + q(rh + ".camera.yaml") + " --model " +
+          q(fifo),
       kEvpipe + " --no-lcm --replay " + q(rh + ".aedat4") + " --camera " + q(rh + ".camera.yaml") + " --model " +
           q(rh + ".model.yaml") + " --prior " + q(fifo),
       kEvpipe + " --no-lcm --replay " + q(rh + ".aedat4") + " --camera " + q(rh + ".camera.yaml") + " --model " +

@@ -193,6 +193,13 @@ TEST(LcmPublisher, InvalidUrlIsDegradedForGoodWithTheReason) {
   }
 }
 
+TEST(LcmPublisher, MemqUrlConnects) {
+  LcmPublisher pub("memq://");
+  EXPECT_EQ(pub.state(), PublisherState::connected);
+  EXPECT_TRUE(pub.can_recover());
+  EXPECT_TRUE(pub.publish_pose(pose_at(1)));
+}
+
 TEST(LcmUrl, ChecksEveryPart) {
   const auto why = [](const std::string& url, bool publish = true) {
     return check_lcm_url(url, publish).value_or("ok");

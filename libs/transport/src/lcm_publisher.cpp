@@ -65,8 +65,8 @@ LcmPublisher::LcmPublisher(LcmPublisherOptions options) : options_(std::move(opt
     }
     return;
   }
-  can_retry_ = parsed.provider != "memq";
   ensure_connected_locked();
+  can_retry_ = parsed.provider != "memq";  // memq:// cannot fail for a reason that goes away
 }
 
 LcmPublisher::LcmPublisher(std::string url, std::string pose_channel, std::string stats_channel)
