@@ -5,6 +5,7 @@
 // Exit status: 0 done (count reached, timeout without --count, end of log, SIGINT/SIGTERM), 1 LCM or log error (a
 // --log that is not an LCM log) or --count not reached before --timeout, 2 usage error (an invalid --url).
 
+#include "evpipe/core/file.hpp"
 #include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/lcm_capture.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
@@ -88,9 +89,18 @@ int main(int argc, char** argv) {
     return 0;
   }
 
-  if (const auto why = evpipe::transport::check_lcm_url(evpipe::transport::effective_lcm_url(url), false)) {
+  evpipe::transport::LcmUrl parsed;
+  if (const auto why = evpipe::transport::check_lcm_url(evpipe::transport::effective_lcm_url(url), false, &parsed)) {
     std::fprintf(stderr, "evpipe-lcm-echo: %s\n", why->c_str());
     return 2;
+  }
+  if (parsed.provider == "file") {  // LCM's file provider would block on a FIFO: a regular file only
+    try {
+      evpipe::check_input_file(parsed.target);
+    } catch (const evpipe::FileError& e) {
+      std::fprintf(stderr, "evpipe-lcm-echo: %s\n", e.what());
+      return 1;
+    }
   }
   evpipe::transport::LcmCapture cap(url);
   if (!cap.good()) {

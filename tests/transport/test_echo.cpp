@@ -126,6 +126,9 @@ TEST(LcmEcho, AFileThatIsNotAnLcmLogIsAnErrorNamingIt) {
   const auto f = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log " + fifo.string(), dir);
   EXPECT_EQ(f.status, 1);
   EXPECT_NE(f.err.find("is a FIFO, not a regular file"), std::string::npos) << f.err;
+  const auto u = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --timeout 1 --url 'file://" + fifo.string() + "'", dir);
+  EXPECT_EQ(u.status, 1);
+  EXPECT_NE(u.err.find("is a FIFO, not a regular file"), std::string::npos) << u.err;
   fs::remove_all(dir);
 }
 
