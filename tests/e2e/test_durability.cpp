@@ -144,14 +144,19 @@ TEST(EvpipeDurability, SigkillLosesNoRowPublishedMoreThanASecondBefore) {
   }
 }
 
-// SIGHUP (a closed terminal) stops like SIGTERM: drained, summary, exit 0, every row whole.
-TEST(EvpipeDurability, SighupStopsCleanly) {
+// SIGUSR1 logs the status line and the run goes on; SIGHUP (a closed terminal) stops like SIGTERM: drained,
+// summary, exit 0, every row whole.
+TEST(EvpipeDurability, Sigusr1LogsTheStatusAndSighupStopsCleanly) {
   const auto dir = evpipe::testing::temp_dir("durability-hup");
   const std::string csv = (dir / "poses.csv").string();
   const std::string out = (dir / "stdout.txt").string();
-  const pid_t pid = spawn_shell(kEvpipe + pose_args(csv) + " --speed 1 --no-lcm --json >" + q(out) + " 2>/dev/null");
+  const std::string err = (dir / "stderr.txt").string();
+  const pid_t pid = spawn_shell(kEvpipe + pose_args(csv) + " --speed 1 --no-lcm --json >" + q(out) + " 2>" + q(err));
   ASSERT_GT(pid, 0);
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  ASSERT_EQ(::kill(pid, SIGUSR1), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_NE(slurp(err).find("status: "), std::string::npos) << slurp(err);
   ASSERT_EQ(::kill(pid, SIGHUP), 0);
   const auto t_hup = Clock::now();
   EXPECT_EQ(wait_status(pid), 0);

@@ -135,9 +135,9 @@ bool LcmPublisher::send_locked(const std::string& channel, const void* data, std
     lcm_eventlog_event_t e{};
     e.timestamp = wall_clock_utime_us();
     e.channellen = static_cast<std::int32_t>(channel.size());
-    e.channel = const_cast<char*>(channel.c_str());  // NOLINT: LCM's C API does not write through it
+    e.channel = const_cast<char*>(channel.c_str());  // NOLINT(cppcoreguidelines-pro-type-const-cast): read only
     e.datalen = static_cast<std::int32_t>(size);
-    e.data = const_cast<void*>(data);  // NOLINT: likewise
+    e.data = const_cast<void*>(data);  // NOLINT(cppcoreguidelines-pro-type-const-cast): read only
     // Whole events: each one is flushed as it is written (a kill loses none; a full disk shows at once).
     errno = 0;
     if (lcm_eventlog_write_event(&log_->log, &e) != 0 || std::fflush(log_->file.get()) != 0 ||
