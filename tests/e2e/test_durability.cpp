@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <map>
 #include <set>
@@ -15,7 +16,6 @@
 #include <vector>
 
 #include "evpipe/camera/trajectory.hpp"
-#include "evpipe/io/reader.hpp"
 #include "evpipe/transport/lcm_capture.hpp"
 #include "evpipe_run.hpp"
 #include "evpipe_test_data.hpp"
@@ -78,7 +78,9 @@ std::vector<evpipe::camera::StampedPose> whole_rows(const std::string& csv) {
 }  // namespace
 
 // SIGKILL mid-run: every valid pose published at least 1 s before the kill is in the CSV, every row whole. The
-// published poses are seen on LCM (udpm on loopback in a private network namespace); without one, by stream time.
+// published poses are seen on LCM (udpm on loopback in a private network namespace). The kill comes 1.5 s after the
+// 10th valid pose (half real time: the 3 s recording lasts 6 s, whatever the time the first initialisation takes on a
+// busy machine). Without multicast: the CSV must hold 10 rows while evpipe runs, and still hold them after the kill.
 TEST(EvpipeDurability, SigkillLosesNoRowPublishedMoreThanASecondBefore) {
   const auto net = evpipe::testing::ensure_multicast_route();
   const std::string url = "udpm://239.255.76.67:" + std::to_string(20000 + ::getpid() % 20000) + "?ttl=0";
@@ -96,29 +98,35 @@ TEST(EvpipeDurability, SigkillLosesNoRowPublishedMoreThanASecondBefore) {
   const std::string err = (dir / "stderr.txt").string();
   const std::string lcm = capture ? " --lcm-url " + q(url) : std::string(" --no-lcm");
   const auto t_spawn = Clock::now();
-  const pid_t pid = spawn_shell(kEvpipe + pose_args(csv) + " --speed 1" + lcm + " >/dev/null 2>" + q(err));
+  const pid_t pid = spawn_shell(kEvpipe + pose_args(csv) + " --speed 0.5" + lcm + " >/dev/null 2>" + q(err));
   ASSERT_GT(pid, 0);
 
-  // Real-time replay: the pipeline starts after loading (logged "replaying ..."); kill 2.5 s later.
-  Clock::time_point t_started{};
+  constexpr std::size_t kPoses = 10;
   std::map<std::int64_t, Clock::time_point> received;  // valid pose t_us -> when it arrived here
-  const auto kill_after = std::chrono::milliseconds(2500);
+  Clock::time_point t_enough{};
+  std::size_t rows_seen = 0;
   while (Clock::now() - t_spawn < std::chrono::seconds(30)) {
-    if (t_started == Clock::time_point{} && slurp(err).find("replaying") != std::string::npos) t_started = Clock::now();
-    if (t_started != Clock::time_point{} && Clock::now() - t_started >= kill_after) break;
     if (capture) {
       capture->drain(std::chrono::milliseconds(10));
       for (const auto& p : capture->poses()) {
         if (p.pose_valid && !received.count(p.t_us)) received[p.t_us] = Clock::now();
       }
+      if (t_enough == Clock::time_point{} && received.size() >= kPoses) t_enough = Clock::now();
     } else {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      const std::string text = slurp(csv);
+      rows_seen = static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
+      if (t_enough == Clock::time_point{} && rows_seen > kPoses) t_enough = Clock::now();
     }
+    if (t_enough != Clock::time_point{} && Clock::now() - t_enough >= std::chrono::milliseconds(1500)) break;
   }
-  ASSERT_NE(t_started, Clock::time_point{}) << slurp(err);
   const auto t_kill = Clock::now();
   ASSERT_EQ(::kill(pid, SIGKILL), 0);
-  EXPECT_EQ(wait_status(pid), 128 + SIGKILL) << slurp(err);
+  EXPECT_EQ(wait_status(pid), 128 + SIGKILL) << "evpipe ended before the kill: " << slurp(err);
+  ASSERT_NE(t_enough, Clock::time_point{})
+      << (capture ? "fewer than 10 valid poses published in 30 s"
+                  : "fewer than 10 rows in the CSV while evpipe ran (not flushed?)")
+      << slurp(err);
 
   const auto rows = whole_rows(csv);
   std::set<std::int64_t> in_csv;
@@ -134,12 +142,9 @@ TEST(EvpipeDurability, SigkillLosesNoRowPublishedMoreThanASecondBefore) {
     }
     std::cout << rows.size() << " rows in the CSV after SIGKILL; " << checked
               << " valid poses published >= 1 s before the kill, all checked (" << net.message << ")\n";
-    EXPECT_GE(checked, 5U) << "too few poses before the kill to say anything (machine overloaded?)";
+    EXPECT_GE(checked, kPoses);
   } else {
-    // By stream time: the replay ran ~2.5 s of the recording; poses of its first second must all be there.
-    const auto first_t_us = evpipe::io::read_all(stem() + ".aedat4").events.front().t_us;
-    ASSERT_FALSE(rows.empty()) << "SIGKILL after 2.5 s left no row";
-    EXPECT_GE(rows.back().t_us, first_t_us + 1'000'000) << "the CSV stops before the recording's first second";
+    EXPECT_GE(rows.size(), kPoses);
     std::cout << rows.size() << " rows in the CSV after SIGKILL (no multicast: " << net.message << ")\n";
   }
 }
