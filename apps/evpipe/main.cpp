@@ -2,8 +2,13 @@
 // by default) → 30 ms sliding windows → pose (OPnL initialisation, MM tracking) → LCM, one thread per stage
 // (libs/pipeline, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd; a summary at the end.
 //
-// Exit status: 0 success (also after SIGINT/SIGTERM), 1 runtime error (bad file, device), 2 usage or
-// configuration error.
+// Exit status: 0 success (also after SIGINT/SIGTERM/SIGHUP), 1 runtime error (bad file, device, an LCM log of which
+// nothing could be written), 2 usage or configuration error (also an output that is one of the inputs, an invalid
+// LCM URL).
+//
+// Signals (docs/operations.md, "Signals"): TERM, INT and HUP stop the run (drain, summary, exit 0); PIPE is ignored
+// (a closed stdout is a write error, reported on stderr); USR1 logs the status line. The poses CSV and the LCM log
+// are written whole row by row, so a kill loses no row already published.
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -27,6 +32,7 @@
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/config/run_config.hpp"
 #include "evpipe/core/error.hpp"
+#include "evpipe/core/file.hpp"
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/metrics/trajectory.hpp"
@@ -36,6 +42,7 @@
 #include "evpipe/service/notify.hpp"
 #include "evpipe/service/supervisor.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
+#include "evpipe/transport/lcm_url.hpp"
 #include "live.hpp"
 #include "pose_stage.hpp"
 #include "preview.hpp"
@@ -55,6 +62,11 @@ extern "C" void on_signal(int /*sig*/) {
   g_stop.store(true);
   if (auto* p = g_paced.load()) p->stop();
   if (auto* p = g_pipeline.load()) p->request_stop();
+}
+// SIGUSR1: the main loop logs the status line (a handler may not log).
+std::atomic<bool> g_status_request{false};
+extern "C" void on_usr1(int /*sig*/) {
+  g_status_request.store(true);
 }
 
 // The pipeline's stages in StageStats order (docs/architecture.md).
@@ -138,6 +150,15 @@ int run(const Cli& cli) {
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(cfg.log.level));
+  // The program's input files: no output (poses CSV, LCM log) may be one of them (docs/operations.md, "Files").
+  const std::vector<std::string> inputs = {cli.config_path, cfg.source.replay, cfg.pose.camera,
+                                           cfg.pose.model,  cfg.pose.prior,    cfg.pose.ground_truth};
+  if (cfg.lcm.enabled) {
+    if (const auto why = transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true)) {
+      std::fprintf(stderr, "evpipe: configuration error: lcm.url (--lcm-url): %s\n", why->c_str());
+      return 2;
+    }
+  }
   if (cli.print_config) {
     std::cout << cfg.to_yaml() << "\n";
     return 0;
@@ -152,7 +173,7 @@ int run(const Cli& cli) {
   if (!pc.camera.empty() || !pc.model.empty() || !pc.prior.empty() || !pc.poses_out.empty() ||
       !pc.ground_truth.empty()) {
     try {
-      pose_stage = app::PoseStage::create(cfg);
+      pose_stage = app::PoseStage::create(cfg, inputs);
       if (!pc.ground_truth.empty()) truth = camera::read_trajectory_csv(pc.ground_truth);
     } catch (const config::ConfigError& e) {
       std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
@@ -184,8 +205,23 @@ int run(const Cli& cli) {
     return 1;
   }
   // The preview (LCM preview_t, --video, --png-every) sees the raw events through this wrapper (preview.hpp).
-  const bool preview_lcm = cfg.lcm.preview && cfg.lcm.enabled;
+  bool preview_lcm = cfg.lcm.preview && cfg.lcm.enabled;
   if (cfg.lcm.preview && !cfg.lcm.enabled) spdlog::warn("LCM preview: off, because LCM is off (--no-lcm, lcm.enabled)");
+  if (transport::LcmUrl u; preview_lcm &&
+                           !transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true, &u) &&
+                           u.provider == "file") {
+    // The publisher writes that log; a second writer would clobber it (and a log is no place for pictures).
+    spdlog::warn("LCM preview: off, because lcm.url is an LCM log file (watch a live run over udpm instead)");
+    preview_lcm = false;
+  }
+  if (!cli.video.empty()) {
+    try {
+      check_output_file(cli.video, inputs);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evpipe: configuration error: --video: %s\n", e.what());
+      return 2;
+    }
+  }
   app::RawTap* tap = nullptr;
   if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
     auto t = std::make_unique<app::RawTap>(std::move(source));
@@ -216,7 +252,13 @@ int run(const Cli& cli) {
     lo.url = cfg.lcm.url;
     lo.pose_channel = cfg.lcm.pose_channel;
     lo.stats_channel = cfg.lcm.stats_channel;
+    lo.inputs = inputs;
+    lo.inputs.push_back(cfg.pose.poses_out);
     publisher = std::make_unique<transport::LcmPublisher>(lo);
+    if (!publisher->can_recover()) {  // a log file that cannot be created: nothing to retry
+      std::fprintf(stderr, "evpipe: configuration error: lcm.url (--lcm-url): %s\n", publisher->last_error().c_str());
+      return 2;
+    }
     spdlog::info("LCM: {} on {} (poses) and {} (statistics){}", transport::effective_lcm_url(cfg.lcm.url),
                  lo.pose_channel, lo.stats_channel,
                  publisher->state() == transport::PublisherState::degraded
@@ -280,6 +322,8 @@ int run(const Cli& cli) {
   g_pipeline.store(&pipe);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::signal(SIGHUP, on_signal);  // a closed terminal or session: stop cleanly like TERM
+  std::signal(SIGUSR1, on_usr1);
 
   // systemd: READY once the threads run, STATUS= every second, WATCHDOG=1 only while every stage progresses.
   service::SupervisorOptions so;
@@ -301,6 +345,11 @@ int run(const Cli& cli) {
   supervisor.start();
   service::ready(live ? "reading the camera" : "replaying " + cfg.source.replay);
   while (!pipe.wait_for(std::chrono::milliseconds(100))) {
+    if (g_status_request.exchange(false)) {
+      const auto st = sink.latest_stats();
+      spdlog::info("status: {}",
+                   st ? app::status_line(*st, sink.latest_status(), pose_stage != nullptr) : std::string("starting"));
+    }
     if (progress.active()) {
       const auto st = pipe.stats();
       std::string extra =
@@ -360,6 +409,10 @@ int run(const Cli& cli) {
     summary.lcm_poses = static_cast<std::uint64_t>(c.poses_published);
     summary.lcm_stats = static_cast<std::uint64_t>(c.stats_published);
     summary.lcm_failures = static_cast<std::uint64_t>(c.publish_failures);
+    if (publisher->writes_log() && c.publish_failures > 0) {
+      spdlog::warn("LCM log: {} of {} message(s) could not be written ({})", c.publish_failures,
+                   c.publish_failures + c.poses_published + c.stats_published, publisher->last_error());
+    }
   }
   if (pose_stage) summary.pose = pose_stage->summary();
   if (!truth.empty()) add_ate(summary, truth, sink.valid_poses());
@@ -373,7 +426,15 @@ int run(const Cli& cli) {
     spdlog::error("{}", preview_error);
     status = 1;
   }
+  if (status == 0 && publisher && publisher->writes_log() && summary.lcm_failures > 0 && summary.lcm_poses == 0 &&
+      summary.lcm_stats == 0) {
+    summary.error = fmt::format("LCM log {}: nothing could be written: {}", summary.lcm_url, publisher->last_error());
+    status = 1;
+  }
   std::cout << (cli.json ? app::format_json(summary) : app::format_text(summary)) << std::flush;
+  if (!std::cout) {  // SIGPIPE is ignored: a closed stdout (`evpipe --json | true`) is a write error, said here
+    std::fprintf(stderr, "evpipe: could not write the summary to standard output (closed pipe?)\n");
+  }
   if (status != 0) std::fprintf(stderr, "evpipe: %s\n", summary.error.c_str());
   return status;
 }
@@ -381,6 +442,7 @@ int run(const Cli& cli) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::signal(SIGPIPE, SIG_IGN);  // a closed stdout/stderr is a write error, not death with rows unwritten
   spdlog::set_default_logger(evpipe::service::make_logger("evpipe"));
 
   Cli cli;
