@@ -201,6 +201,8 @@ double motion_time_s(double t_s, const std::vector<MotionStop>& stops, double ra
     if (!(st.at_s >= 0.0) || !(st.for_s >= 0.0)) throw std::invalid_argument("motion stops: negative time");
     if (st.at_s - r < end_prev) throw std::invalid_argument("motion stops: unsorted or overlapping (ramps included)");
     end_prev = st.at_s + st.for_s + r;
+  }
+  for (const auto& st : stops) {
     const double a = st.at_s - r;  // start of the slow-down
     if (t_s <= a) break;
     if (t_s < st.at_s) return t_s - lost - ((t_s - a) - down(t_s - a));
