@@ -1,15 +1,15 @@
 // End-to-end: the real evpipe / evconvert / evsim binaries on recorded files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <algorithm>
 #include <map>
-#include <set>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "evpipe/camera/camera_model.hpp"
