@@ -140,6 +140,14 @@ def gt_span(gt: Path) -> tuple[int, int]:
     return first, last
 
 
+def has_status(csv_path: Path) -> bool:
+    with open(csv_path) as f:
+        for ln in f:
+            if ln.strip() and not ln.lstrip().startswith("#"):
+                return "status" in [c.strip() for c in ln.split(",")]
+    return False
+
+
 def do_run(env: Env, r: Run) -> dict:
     out_dir = env.work / "runs-trust"
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -163,7 +171,10 @@ def do_run(env: Env, r: Run) -> dict:
     summary = json_object(p.stdout, f"evpipe on {r.key}")
     res = {"summary": summary, "wall_s": wall, "eval": {}, "errors": [], "span": gt_span(r.gt)}
     if poses.exists() and poses.stat().st_size > 0:
-        ecmd = [env.evpose_eval, str(poses), str(r.gt), "--json", "--errors-out", str(errors), *r.eval_args]
+        # Only the valid poses (tracking/holding) when the CSV says which they are: an evpipe that also writes its
+        # initialising/lost rows must not have their poses counted as errors.
+        valid = ["--only-valid"] if has_status(poses) else []
+        ecmd = [env.evpose_eval, str(poses), str(r.gt), "--json", "--errors-out", str(errors), *valid, *r.eval_args]
         e = env.run(ecmd, env.timeout)
         if e.returncode == 0:
             res["eval"] = json_object(e.stdout, "evpose-eval")
