@@ -297,10 +297,11 @@ def section_scene_tables(results: dict, scenes: list[Scene], filters) -> list[st
         "",
         "ATE = |t_est − t_truth| over every published pose with ground truth (mm): RMSE, mean, median, std "
         "(population), max; rotation error = angle of R_truthᵀ R_est (deg). `tracking` = ATE RMSE over the poses "
-        "whose status is `tracking` (n/a when evpipe writes no status). Coverage = share of the truth's 3 s covered "
+        "whose status is `tracking` or `holding` (n/a when evpipe writes no status). Coverage = share of the truth's 3 s covered "
         "by poses at most 100 ms apart; first = sensor time from the start to the first pose (ms). init = evpipe's "
         "`pose_init_ms`, rate = `pose_rate_hz` (n/a until evpipe reports them); poses/s = rows of the poses CSV per "
-        "second of recording.",
+        "second of recording. wrong confident = `tracking`/`holding` poses more than 20 mm or 2° off "
+        "(`evpose-eval`; the issue wants 0).",
         "",
     ]
     for model in MODELS:
