@@ -64,6 +64,10 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
   window_us_ = static_cast<std::int32_t>(std::clamp(1e6 / options_.slowest_speed_px_s, 1.0, 1e8));
   jitter_us_ = static_cast<std::int32_t>(std::clamp<std::int64_t>(options_.timing_jitter_us, 0, 100'000'000));
   precision_ = static_cast<float>(options_.edge_precision_px);
+  // Both tests' per-m quantiles depend on alpha only: P(Binomial(8, q_m) >= m) = alpha / 2 / 8.
+  for (int m = 1; m <= kNeighbours; ++m) {
+    quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, options_.alpha / 2.0 / kNeighbours);
+  }
   allocate();
   reset();
 }
@@ -88,10 +92,9 @@ void Significance::reset() noexcept {
 
 void Significance::set_rate(double rate_hz) noexcept {
   rate_hz_ = std::max(0.0, rate_hz);
-  const double alpha_test = options_.alpha / 2.0;
   // Recency: Bonferroni over k = 1..8.
   for (int k = 1; k <= kNeighbours; ++k) {
-    const double p = binomial_quantile(kNeighbours, k, alpha_test / kNeighbours);
+    const double p = quantile_[static_cast<std::size_t>(k - 1)];
     double a_us = rate_hz_ > 0.0 ? -std::log1p(-p) / rate_hz_ * 1e6 : static_cast<double>(kAgeCap);
     a_us = std::min(a_us, static_cast<double>(std::min<std::int64_t>(kAgeCap, options_.recency_max_us)));
     recency_us_[static_cast<std::size_t>(k - 1)] = static_cast<std::int32_t>(a_us);
@@ -105,7 +108,7 @@ void Significance::set_rate(double rate_hz) noexcept {
   for (int m = 1; m <= kNeighbours; ++m) {
     double u_s = 0.0;
     if (options_.edge_line) {
-      const double p = binomial_quantile(kNeighbours, m, alpha_test / kNeighbours);
+      const double p = quantile_[static_cast<std::size_t>(m - 1)];
       const double pairs = -std::log1p(-p);
       if (rate_hz_ <= 0.0) {
         u_s = T;
@@ -168,36 +171,55 @@ void Significance::rebase(std::int64_t t_us) noexcept {
   base_us_ += shift;
 }
 
-void Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity,
-                              std::array<std::int32_t, 8>& first) const noexcept {
+float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept {
   static constexpr std::array<std::int8_t, 8> kDx = {-1, 0, 1, -1, 1, -1, 0, 1};
   static constexpr std::array<std::int8_t, 8> kDy = {-1, -1, -1, 0, 0, 1, 1, 1};
   const std::int32_t window = line_us_[7];
+  std::array<std::int32_t, 8> sorted{};  // matched ages so far, ascending
+  int n = 0;
+  float ratio = 0.0F;
   for (std::size_t i = 0; i < 8; ++i) {
     const std::int64_t off = kDy[i] * stride_ + kDx[i];
     const std::int32_t* r1 = ring_.data() + (static_cast<std::int64_t>(centre) - off) * kRing;
     const std::int32_t* r2 = ring_.data() + (static_cast<std::int64_t>(centre) - 2 * off) * kRing;
+    // Two pointers: the window [(2 − ε)s − δ₀, (2 + ε)s + δ₀] only moves later as s grows (entries newest first),
+    // so r2 is walked once per direction: at most 2·kRing steps.
     std::int32_t found = kAgeCap;
-    for (int a = 0; a < kRing; ++a) {
+    int b = 0;
+    for (int a = 0; a < kRing && b < kRing; ++a) {
       const std::int32_t v1 = r1[a];
       const std::int32_t s1 = now - (v1 >> 1);
       if (s1 > window) break;  // newest first: the rest is older
       if ((v1 & 1) != polarity) continue;
       const std::int32_t tol = jitter_us_ + static_cast<std::int32_t>(precision_ * static_cast<float>(s1));
-      const std::int32_t target = 2 * s1;
-      for (int b = 0; b < kRing; ++b) {
-        const std::int32_t v2 = r2[b];
-        const std::int32_t s2 = now - (v2 >> 1);
-        if (s2 > target + tol) break;
-        if ((v2 & 1) == polarity && s2 >= target - tol) {
+      const std::int32_t lo = 2 * s1 - tol;
+      const std::int32_t hi = 2 * s1 + tol;
+      while (b < kRing && now - (r2[b] >> 1) < lo) ++b;
+      for (int j = b; j < kRing; ++j) {
+        const std::int32_t v2 = r2[j];
+        if (now - (v2 >> 1) > hi) break;
+        if ((v2 & 1) == polarity) {
           found = s1;
           break;
         }
       }
       if (found != kAgeCap) break;
     }
-    first[i] = found;
+    if (found == kAgeCap) continue;
+    // Insert, then test u_(m) <= U_m over the matches so far: once it holds for some m it holds for the full
+    // sorted list too (its m-th smallest can only be smaller), so the decision is final.
+    int j = n++;
+    for (; j > 0 && sorted[static_cast<std::size_t>(j - 1)] > found; --j) {
+      sorted[static_cast<std::size_t>(j)] = sorted[static_cast<std::size_t>(j - 1)];
+    }
+    sorted[static_cast<std::size_t>(j)] = found;
+    for (int m = 0; m < n; ++m) {
+      const auto mu = static_cast<std::size_t>(m);
+      ratio = std::max(ratio, static_cast<float>(line_us_[mu]) / static_cast<float>(std::max(sorted[mu], 1)));
+    }
+    if (ratio >= 1.0F) break;
   }
+  return ratio;
 }
 
 bool Significance::accept(const Event& e) noexcept {
@@ -218,15 +240,28 @@ bool Significance::accept(const Event& e) noexcept {
   const auto s = static_cast<std::int64_t>(stride_);
   const std::int64_t c = static_cast<std::int64_t>(centre);
   const std::array<std::int64_t, 8> nb = {c - s - 1, c - s, c - s + 1, c - 1, c + 1, c + s - 1, c + s, c + s + 1};
+  // The 5×5 block's rings (5 rows of 160 bytes): start every cache line now, the tests below read them in an
+  // order that jumps between rows.
+  for (std::int64_t dy = -2; dy <= 2; ++dy) {
+    const char* row = reinterpret_cast<const char*>(ring + (c + dy * s - 2) * kRing);
+    __builtin_prefetch(row);
+    __builtin_prefetch(row + 64);
+    __builtin_prefetch(row + 128);
+    __builtin_prefetch(row + 159);
+  }
   std::array<std::int32_t, 8> age{};
+  std::int32_t newest = kAgeCap;
   for (std::size_t i = 0; i < 8; ++i) {
     age[i] = std::min(kAgeCap, now - (ring[nb[i] * kRing] >> 1));
+    newest = std::min(newest, age[i]);
   }
-  sort8(age);
-  if (age[0] > kZeroSupportUs) ++zero_support_;
+  if (newest > kZeroSupportUs) ++zero_support_;
   float ratio = 0.0F;
-  for (std::size_t k = 0; k < 8; ++k) {
-    ratio = std::max(ratio, static_cast<float>(recency_us_[k]) / static_cast<float>(std::max(age[k], 1)));
+  if (options_.recency_max_us > 0) {
+    sort8(age);
+    for (std::size_t k = 0; k < 8; ++k) {
+      ratio = std::max(ratio, static_cast<float>(recency_us_[k]) / static_cast<float>(std::max(age[k], 1)));
+    }
   }
   bool keep = ratio >= 1.0F;
   float score = ratio;
@@ -234,13 +269,7 @@ bool Significance::accept(const Event& e) noexcept {
   if (keep) {
     ++kept_recency_;
   } else if (options_.edge_line) {
-    std::array<std::int32_t, 8> first{};
-    edge_lines(centre, now, polarity, first);
-    sort8(first);
-    float line = 0.0F;
-    for (std::size_t m = 0; m < 8; ++m) {
-      line = std::max(line, static_cast<float>(line_us_[m]) / static_cast<float>(std::max(first[m], 1)));
-    }
+    const float line = edge_lines(centre, now, polarity);
     score = std::max(score, line);
     if (line >= 1.0F) {
       keep = true;

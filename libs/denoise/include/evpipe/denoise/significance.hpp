@@ -36,8 +36,8 @@ namespace evpipe::denoise {
 struct SignificanceOptions {
   double alpha = 5e-4;                      ///< false-alarm rate: share of noise events kept (both tests)
   double slowest_speed_px_s = 2.0;          ///< slowest edge the edge-line test looks for (T = 1 / it)
-  double edge_precision_px = 0.02;          ///< edge position precision (crossing-time error = it / speed)
-  std::int64_t timing_jitter_us = 500;      ///< timestamp jitter between neighbouring pixels
+  double edge_precision_px = 0.1;           ///< edge position precision (crossing-time error = it / speed)
+  std::int64_t timing_jitter_us = 2000;     ///< timestamp jitter between neighbouring pixels
   std::int64_t rate_period_us = 10'000;     ///< BA rate (and thresholds) update period
   std::int64_t rate_memory_us = 1'000'000;  ///< BA rate estimate's memory (exponential forgetting)
   double initial_rate_hz = 10.0;            ///< BA rate assumed before the first period closes (conservative)
@@ -52,7 +52,8 @@ class Significance {
 
   Significance(const SensorGeometry& geometry, SignificanceOptions options);
   [[nodiscard]] bool accept(const Event& e) noexcept;
-  /// >= 1 exactly when kept: the larger of the recency margin max_k A_k / a_(k) and m / m*.
+  /// >= 1 exactly when kept: the larger of the recency margin max_k A_k / a_(k) and the edge-line margin
+  /// max_m U_m / u_(m) (for a kept event, over the directions examined until the decision was final).
   [[nodiscard]] float last_score() const noexcept { return score_; }
   void reset() noexcept;
   /// rate_hz (current BA estimate), kept_recency, kept_edge_line, line_threshold (m*).
@@ -68,9 +69,8 @@ class Significance {
   void allocate();
   void rebase(std::int64_t t_us) noexcept;
   void update_rate(std::int64_t t_us) noexcept;
-  /// Per direction, the smallest age s of a matched edge line (kAgeCap-like large value: none).
-  void edge_lines(std::size_t centre, std::int32_t now, int polarity,
-                  std::array<std::int32_t, 8>& first) const noexcept;
+  /// max_m U_m / u_(m) over the directions' smallest matched ages u, examined until it reaches 1 (kept).
+  [[nodiscard]] float edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept;
 
   SensorGeometry geometry_;
   SignificanceOptions options_;
@@ -80,6 +80,7 @@ class Significance {
   bool started_ = false;
   std::array<std::int32_t, 8> recency_us_{};
   std::array<std::int32_t, 8> line_us_{};  // U_1..U_8
+  std::array<double, 8> quantile_{};       // q_m: P(Binomial(8, q_m) >= m) = alpha / 2 / 8
   std::int32_t window_us_ = 0;             // T
   std::int32_t jitter_us_ = 0;
   float precision_ = 0.0F;
