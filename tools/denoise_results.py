@@ -73,10 +73,10 @@ PAPER_N = [500, 3000, 6000, 9000]
 SCENES = [("rotating-bar", 1.0), ("translating-rect", 1.0), ("rotating-bar", 0.2), ("translating-rect", 0.2)]
 # Slow edges (3-15 px/s): translating-rect x0.025 / x0.0625 / x0.125 = 3 / 7.5 / 15 px/s, rotating-bar x0.05 = tip
 # at 12 px/s. Seed 1, 1 s each, no hot pixels.
-SLOW_RATES = [0] + RATES
 SLOW_SCENES = [("translating-rect", 0.025), ("translating-rect", 0.0625), ("translating-rect", 0.125),
                ("rotating-bar", 0.05)]
 RATES = [0.1, 1, 3, 5, 10]
+SLOW_RATES = [0] + RATES
 REAL = [  # (folder/file, sensor) — DAVIS346 first: the acceptance is on those
     ("emlb-demo-01/demo-01.aedat4", "DAVIS346"),
     ("davis346-faery/davis346.aedat4", "DAVIS346"),

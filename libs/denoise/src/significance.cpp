@@ -213,11 +213,16 @@ float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarit
       sorted[static_cast<std::size_t>(j)] = sorted[static_cast<std::size_t>(j - 1)];
     }
     sorted[static_cast<std::size_t>(j)] = found;
+    bool decided = false;
     for (int m = 0; m < n; ++m) {
       const auto mu = static_cast<std::size_t>(m);
-      ratio = std::max(ratio, static_cast<float>(line_us_[mu]) / static_cast<float>(std::max(sorted[mu], 1)));
+      decided |= line_us_[mu] > 0 && sorted[mu] <= line_us_[mu];  // the same as the ratio below reaching 1
     }
-    if (ratio >= 1.0F) break;
+    if (decided) break;
+  }
+  for (int m = 0; m < n; ++m) {
+    const auto mu = static_cast<std::size_t>(m);
+    ratio = std::max(ratio, static_cast<float>(line_us_[mu]) / static_cast<float>(std::max(sorted[mu], 1)));
   }
   return ratio;
 }
@@ -240,14 +245,12 @@ bool Significance::accept(const Event& e) noexcept {
   const auto s = static_cast<std::int64_t>(stride_);
   const std::int64_t c = static_cast<std::int64_t>(centre);
   const std::array<std::int64_t, 8> nb = {c - s - 1, c - s, c - s + 1, c - 1, c + 1, c + s - 1, c + s, c + s + 1};
-  // The 5×5 block's rings (5 rows of 160 bytes): start every cache line now, the tests below read them in an
-  // order that jumps between rows.
+  // The 5×5 block's rings (5 rows of 5·kRing·4 bytes): start every cache line now, the tests below read them in
+  // an order that jumps between rows.
   for (std::int64_t dy = -2; dy <= 2; ++dy) {
     const char* row = reinterpret_cast<const char*>(ring + (c + dy * s - 2) * kRing);
     __builtin_prefetch(row);
-    __builtin_prefetch(row + 64);
-    __builtin_prefetch(row + 128);
-    __builtin_prefetch(row + 159);
+    __builtin_prefetch(row + 5 * kRing * sizeof(std::int32_t) - 1);
   }
   std::array<std::int32_t, 8> age{};
   std::int32_t newest = kAgeCap;

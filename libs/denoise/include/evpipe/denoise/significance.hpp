@@ -20,7 +20,7 @@
 // lambda: from the events whose 8 neighbours are all older than T0 = 10 ms (rate r0 per pixel·s, which noise
 // alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us.
 //
-// State: per pixel the last `kRing` events (time·2 + polarity, 32 bits relative to a base that moves forward on
+// State: per pixel the last `kRing` (4) events (time·2 + polarity, 32 bits relative to a base that moves forward on
 // long streams), padded by 2 pixels on every side; allocated in one place (allocate()).
 
 #include <array>
@@ -47,7 +47,7 @@ struct SignificanceOptions {
 
 class Significance {
  public:
-  static constexpr int kRing = 8;
+  static constexpr int kRing = 4;
   static constexpr int kPad = 2;
 
   Significance(const SensorGeometry& geometry, SignificanceOptions options);
