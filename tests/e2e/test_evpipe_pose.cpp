@@ -200,7 +200,8 @@ TEST(EvpipePoseWorker, InitialisesOnAWorkerWhileEveryWindowIsPublished) {
   EXPECT_GE(std::stoi(json_field(forced.out, "pose_init_attempts")), 1) << forced.out;
 }
 
-// evpipe's own curvature default (DenoiseConfig::pipeline_params): the density threshold follows the measured noise
+// evpipe's own curvature defaults when curvature is chosen (DenoiseConfig::pipeline_params): the density threshold
+// follows the measured noise
 // rate, at most the paper's 5. The bundled sample's target moves slowly around t = 1.5 s (~20 px/s), where the fixed
 // threshold starves the tracker of edges (measured: 77 of 100 windows tracked, against 100 with the default).
 TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
@@ -214,9 +215,9 @@ TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
                q(stem + ".model.yaml") + " --prior " + q(stem + ".prior.yaml") + " --ground-truth " +
                q(stem + ".gt.csv"));
   };
-  const auto adaptive = replay("");
+  const auto adaptive = replay("denoise: {filter: curvature}");
   ASSERT_EQ(adaptive.status, 0) << adaptive.err;
-  const auto paper = replay("denoise: {params: {adaptive: false}}");
+  const auto paper = replay("denoise: {filter: curvature, params: {adaptive: false}}");
   ASSERT_EQ(paper.status, 0) << paper.err;
   for (const auto* r : {&adaptive, &paper}) {
     std::cout << (r == &adaptive ? "default: " : "adaptive false: ") << json_field(r->out, "pose_updates")
@@ -233,4 +234,12 @@ TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
   EXPECT_EQ(json_field(paper.out, "adaptive_periods"), "0");
   EXPECT_EQ(json_field(paper.out, "density_threshold_used"), "5");
   EXPECT_LT(std::stoi(json_field(paper.out, "pose_updates")), std::stoi(json_field(adaptive.out, "pose_updates")));
+  // evpipe's default filter (significance) keeps the slow part too.
+  const auto significance = replay("");
+  ASSERT_EQ(significance.status, 0) << significance.err;
+  std::cout << "significance: " << json_field(significance.out, "pose_updates") << " poses, ATE "
+            << json_field(significance.out, "ate_rmse_mm") << " mm\n";
+  EXPECT_EQ(json_field(significance.out, "denoise_filter"), "significance");
+  EXPECT_GE(std::stoi(json_field(significance.out, "pose_updates")), 95);
+  EXPECT_LT(std::stod(json_field(significance.out, "ate_rmse_mm")), 5.0);
 }
