@@ -86,12 +86,15 @@ TEST_P(EvpipePose, EstimatesPosesCloseToTheTruth) {
   const auto est = evpipe::camera::read_trajectory_csv(poses);
   const auto gt = evpipe::camera::read_trajectory_csv(stem.string() + ".gt.csv");
   // 2 s of 30 ms windows = 66; a slow start gathers up to 300 ms of events to initialise.
-  EXPECT_GE(est.size(), 40u) << r.out;  // measured 61 (planar, slow: sparse windows; 49 with a fixed threshold) and 67
+  EXPECT_GE(est.size(), 40u) << r.out;  // measured 66 and 65 (curvature: 61, sparse windows; 49 fixed threshold; 67)
   EXPECT_EQ(json_field(r.out, "pose_updates"), std::to_string(est.size()));
   const auto a = ate(est, gt);
   std::cout << model << " " << distance_m << " m " << noise_hz << " Hz/px: " << est.size() << " poses, ATE RMSE "
             << a.rmse_mm << " mm, max " << a.max_mm << " mm\n";
-  EXPECT_EQ(a.n, est.size());
+  // Every pose lies within the truth's time span, except possibly the last: with evpipe's causal default filter the
+  // recording's last events are decided at once and the final window, which may end after the last truth sample, is
+  // published too.
+  EXPECT_GE(a.n + 1, est.size());
   EXPECT_LT(a.rmse_mm, 15.0);  // the paper's 15 mm (Table 6)
   // The CSV's extra columns: status,inliers,sigma_px.
   std::ifstream in(poses);

@@ -288,7 +288,7 @@ bool Significance::accept(const Event& e) noexcept {
 }
 
 std::vector<ReportItem> Significance::report() const {
-  return {{"rate_hz", rate_hz_},
+  return {{"noise_rate_hz", rate_hz_},
           {"kept_recency", static_cast<double>(kept_recency_)},
           {"kept_edge_line", static_cast<double>(kept_line_)},
           {"line_window_us", static_cast<double>(line_us_[7])}};

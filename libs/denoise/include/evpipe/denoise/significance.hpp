@@ -56,7 +56,7 @@ class Significance {
   /// max_m U_m / u_(m) (for a kept event, over the directions examined until the decision was final).
   [[nodiscard]] float last_score() const noexcept { return score_; }
   void reset() noexcept;
-  /// rate_hz (current BA estimate), kept_recency, kept_edge_line, line_threshold (m*).
+  /// noise_rate_hz (current BA estimate), kept_recency, kept_edge_line, line_window_us (U_8).
   [[nodiscard]] std::vector<ReportItem> report() const;
 
   [[nodiscard]] double rate_hz() const noexcept { return rate_hz_; }
