@@ -4,7 +4,8 @@
 // "Significance filter"). Causal (decides each event on arrival: zero look-ahead), O(1) per event.
 //
 // Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Two tests, each
-// at alpha / 2 (so that a noise event passes with probability <= alpha):
+// at alpha / 2 (so that a noise event passes with probability <= alpha); the edge-line test decides by default, the
+// recency test is optional (recency_max_us > 0):
 //  * recency (count) test: the ages a_q of the newest event of the 8 neighbours q (own pixel excluded: hot pixels
 //    and refractory bursts do not support themselves; each neighbour counts once, so a hot neighbour adds at most
 //    1) are i.i.d. Exp(lambda) under noise. Sorted a_(1) <= ... <= a_(8); the event passes when a_(k) <= A_k for
@@ -14,9 +15,9 @@
 //    t − s and t − 2s (constant local speed), with the event's polarity. A direction d matches when a stored event
 //    of p − d (age s <= T = 1 / slowest_speed_px_s) and one of p − 2d (age s2) of the same polarity satisfy
 //    |s2 − 2s| <= jitter + precision·s. Under noise a direction matches with probability
-//    p_dir = 1 − exp(−(lambda²/2)·(jitter·T + precision·T²/2)); the event passes when m matched directions are
-//    improbable: P(Binomial(8, p_dir) >= m) <= alpha / 2. Slow edges pass it: their support is sparse but
-//    exactly placed in time.
+//    p(U) = 1 − exp(−(lambda²/2)·(jitter·U + precision·U²/2)) within age U; with the directions' smallest matched
+//    ages sorted, u_(1) <= ... <= u_(8), the event passes when u_(m) <= U_m for some m, P(Binomial(8, p(U_m)) >= m)
+//    = alpha / 2 / 8. Slow edges pass it: their support is sparse but exactly placed in time.
 // lambda: from the events whose 8 neighbours are all older than T0 = 10 ms (rate r0 per pixel·s, which noise
 // alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us.
 //
