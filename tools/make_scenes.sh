@@ -51,6 +51,19 @@ for spec in rotating-bar:1:rotating-bar rotating-bar:0.2:rotating-bar-slow \
   done
 done
 
+# (b2) Slow edges (3-15 px/s) for denoising, 1 s each, seed 1, no noise (the structure bound) and the 5 rates:
+# translating-rect x0.025 / x0.0625 / x0.125 = 3 / 7.5 / 15 px/s, rotating-bar x0.05 = tip at 12 px/s.
+for spec in translating-rect:0.025:rect-3pxs translating-rect:0.0625:rect-7.5pxs translating-rect:0.125:rect-15pxs \
+            rotating-bar:0.05:bar-12pxs; do
+  IFS=: read -r scene speed label <<<"$spec"
+  for noise in 0 0.1 1 3 5 10; do
+    name="slow-$label-n$noise"
+    job --scene "$scene" --speed "$speed" --duration-ms 1000 --noise-hz "$noise" --hot-pixels 0 --seed 1 \
+        --out "$out/denoise/$name.aedat4" --labels "$out/denoise/$name.txt" --png "$out/denoise/$name.png"
+    echo "denoise,$name,denoise/$name.aedat4,denoise/$name.txt,$scene,$speed,,$noise,0,1,1000" >>"$index"
+  done
+done
+
 # (c) Pose scenes, 3 s each: the planar target and the roadheader wireframe at 3 distances and 4 noise rates,
 # default views (docs/simulation.md) and generated motion. One seed per model: at one distance the motion,
 # the signal events and the prior are the same at every noise rate.

@@ -52,8 +52,9 @@ TEST(Evpipe, ReplaysTheBundledSample) {
   EXPECT_EQ(json_field(r.out, "last_t_us"), std::to_string(expected.events.back().t_us));
   EXPECT_EQ(json_field(r.out, "out_of_order"), "0");
   EXPECT_EQ(json_field(r.out, "error"), "");
-  // The paper's filter by default; 30 ms fixed windows over a 1.5 s recording: each kept event in exactly one.
-  EXPECT_EQ(json_field(r.out, "denoise_filter"), "curvature");
+  // evpipe's significance filter by default; 30 ms fixed windows over a 1.5 s recording: each kept event in exactly
+  // one.
+  EXPECT_EQ(json_field(r.out, "denoise_filter"), "significance");
   EXPECT_EQ(json_field(r.out, "denoise_in"), std::to_string(expected.events.size()));
   const auto kept = std::stoull(json_field(r.out, "denoise_kept"));
   EXPECT_GT(kept, expected.events.size() / 4);

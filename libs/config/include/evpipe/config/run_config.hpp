@@ -53,7 +53,7 @@ struct WindowConfig {
 
 struct DenoiseConfig {
   /// A filter or comma-separated chain by name (`evdenoise --list-filters`); "none" = no denoising.
-  std::string filter = "curvature";
+  std::string filter = "significance";
   /// KEY (or NAME.KEY in a chain) → value, as `evdenoise --set KEY=VALUE`; the filter validates them.
   std::vector<std::pair<std::string, std::string>> params;
   /// Threads one block of the filter is spread over (denoise::Filter::set_parallelism); 0 = auto (the cores the
