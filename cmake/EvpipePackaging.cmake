@@ -65,20 +65,24 @@ set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)  # evpipe_<version>_<arch>.deb
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "event-camera pose pipeline for a DAVIS346, as a systemd service")
+# Extended description: lines of at most 72 characters (lintian: extended-description-line-too-long at 80).
 if(EVPIPE_WITH_LIBCAER)
-  set(_deb_camera "It reads the camera through libcaer ${EVPIPE_LIBCAER_VERSION}, which is not a Debian package:\n"
-                  "install it from iniVation (docs/operations.md) before starting the service.")
+  set(_deb_camera "It reads the camera through libcaer ${EVPIPE_LIBCAER_VERSION}, which is not a Debian\n"
+                  "package: install it from iniVation's source first (docs/operations.md).")
 else()
-  set(_deb_camera "This build has NO camera support (libcaer stub, EVPIPE_WITH_LIBCAER=OFF or AUTO without\n"
-                  "libcaer): it replays recordings only. Release packages are built with EVPIPE_WITH_LIBCAER=ON.")
+  set(_deb_camera "This build has NO camera support (libcaer stub: EVPIPE_WITH_LIBCAER\n"
+                  "OFF, or AUTO without libcaer): it only replays recordings. Release\n"
+                  "packages are built with EVPIPE_WITH_LIBCAER=ON.")
 endif()
 # CPack puts the summary in front of it as the synopsis line.
 string(CONCAT CPACK_DEBIAN_PACKAGE_DESCRIPTION
-       "evpipe turns the event stream of a DAVIS346 event camera into the 6-DoF pose of a\n"
-       "mining machine: denoising, line-model pose estimation and tracking, one thread per\n"
-       "stage, poses and statistics published on LCM. The service (evpipe.service, not\n"
-       "enabled on install) runs with a watchdog; /etc/evpipe/evpipe.yaml is its configuration.\n"
-       "Tools: evconvert, evsim, evdenoise, evpose-eval, evpipe-lcm-echo, evpipe-lcm-spy.\n"
+       "evpipe turns the event stream of a DAVIS346 event camera into the\n"
+       "6-DoF pose of a mining machine: denoising, line-model pose estimation\n"
+       "and tracking, one thread per stage, poses and statistics published on\n"
+       "LCM. The service (evpipe.service, not enabled on install) runs with a\n"
+       "watchdog; /etc/evpipe/evpipe.yaml is its configuration. Tools:\n"
+       "evconvert, evsim, evdenoise, evpose-eval, evpipe-lcm-echo and\n"
+       "evpipe-lcm-spy.\n"
        ${_deb_camera})
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 if(EVPIPE_WITH_LIBCAER AND EVPIPE_LIBCAER_LIBDIR_EXTRA)

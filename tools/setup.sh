@@ -20,6 +20,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # operations checks (systemd-analyze verify, multicast route on lo)
   systemd iproute2
+  # the Debian package and its release check (cpack DEB: dpkg-shlibdeps; tools/check_deb.sh: lintian, debootstrap)
+  dpkg-dev fakeroot lintian debootstrap
   # handy for fixtures and benches
   lz4 zstd
 )
