@@ -33,6 +33,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 
+mkdir -p build "$work"
 t_start=$(date +%s)
 stamp() { echo "== [$(( $(date +%s) - t_start )) s] $*"; }
 fails=0
