@@ -51,7 +51,7 @@ macro(evpipe_resolve_libcaer)
         "EVPIPE_WITH_LIBCAER=ON, but libcaer >= 3.3 was not found (CMake package 'libcaer' or pkg-config "
         "'libcaer'; found ${_evpipe_caer_seen}).\n"
         "Debian 12 has no libcaer package: build and install it from iniVation's source as docs/operations.md "
-        "describes (section 'Install libcaer': libusb-1.0-0-dev, then libcaer's own CMake build, installed to "
+        "describes (Install, step 2 'Install libcaer': libusb-1.0-0-dev, then libcaer's own CMake build, installed to "
         "/usr/local). If it is installed under another prefix, configure with -DCMAKE_PREFIX_PATH=<that prefix>.\n"
         "To build without camera support (replay only, the stub in third_party_stubs/), configure with "
         "-DEVPIPE_WITH_LIBCAER=AUTO or OFF.")
