@@ -32,6 +32,17 @@ if(EVPIPE_WITH_LIBCAER AND EVPIPE_LIBCAER_LIBDIR_EXTRA AND NOT EVPIPE_LIBCAER_RP
        "# libcaer for evpipe (installed outside the dynamic linker's default folders)\n${EVPIPE_LIBCAER_LIBDIR}\n")
   install(FILES ${_deb_dir}/evpipe-libcaer.conf DESTINATION /etc/ld.so.conf.d)
   set(_deb_ldconf /etc/ld.so.conf.d/evpipe-libcaer.conf)
+  # lintian reports both ways of reaching a library outside the linker's folders as errors (an RPATH:
+  # custom-library-search-path; this entry: package-modifies-ld.so-search-path). The entry is the one needed here
+  # (libcaer is not a Debian package and lies where the operator installed it), so the package says so in
+  # lintian's overrides. The documented install (libcaer in /usr/local, operations.md) needs neither.
+  file(WRITE ${_deb_dir}/lintian-overrides
+       "# libcaer (not in Debian) was installed under ${EVPIPE_LIBCAER_LIBDIR}: evpipe's programs find it through\n"
+       "# this entry; no RPATH (cmake/EvpipePackaging.cmake).\n"
+       "evpipe: package-modifies-ld.so-search-path [etc/ld.so.conf.d/evpipe-libcaer.conf]\n"
+       "# The ldconfig trigger makes the entry above take effect (the package has no shared library itself).\n"
+       "evpipe: package-has-unnecessary-activation-of-ldconfig-trigger\n")
+  install(FILES ${_deb_dir}/lintian-overrides DESTINATION ${CMAKE_INSTALL_DATADIR}/lintian/overrides RENAME evpipe)
 endif()
 
 # conffiles: every file the package puts in /etc (dpkg keeps an edited one on upgrade and removes them on purge).
