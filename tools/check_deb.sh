@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# Release check of the Debian package (docs/operations.md, "Install" and "Releasing"): builds evpipe_<v>_<arch>.deb
+# Release check of the Debian package (docs/operations.md, "Install" and "Checking the package before a release"): builds evpipe_<v>_<arch>.deb
 # with the deb preset, checks it statically (contents, conffiles, Depends from dpkg-shlibdeps, lintian: no errors),
 # then installs it the way operations.md says into a fresh Debian 12 root made by debootstrap and checks it there:
 # `apt-get install ./evpipe_*.deb`, `evpipe --version`, a replay of the bundled sample through the installed
 # configuration (LCM to a log file, read back with evpipe-lcm-echo), `systemd-analyze verify` on the installed
 # unit, what postinst did (group, service not enabled), an update that keeps the operator's edited evpipe.yaml,
-# and `dpkg --purge` leaving nothing behind. Takes about 10 minutes (debootstrap and the package's dependencies
+# and `dpkg --purge` leaving nothing behind. Takes 8-12 minutes (debootstrap and the package's dependencies
 # are downloaded from the Debian mirror): not part of tools/test.sh.
 #
 # Usage: sudo tools/check_deb.sh [--libcaer ON|AUTO|OFF] [--static-only] [--keep] [--mirror URL] [--work DIR]
