@@ -5,7 +5,7 @@
 # `apt-get install ./evpipe_*.deb`, `evpipe --version`, a replay of the bundled sample through the installed
 # configuration (LCM to a log file, read back with evpipe-lcm-echo), `systemd-analyze verify` on the installed
 # unit, what postinst did (group, service not enabled), an update that keeps the operator's edited evpipe.yaml,
-# and `dpkg --purge` leaving nothing behind. Takes 8-12 minutes (debootstrap and the package's dependencies
+# and `dpkg --purge` leaving nothing behind. Takes 8-28 minutes (debootstrap and the package's dependencies
 # are downloaded from the Debian mirror): not part of tools/test.sh.
 #
 # Usage: sudo tools/check_deb.sh [--libcaer ON|AUTO|OFF] [--static-only] [--keep] [--mirror URL] [--work DIR]
