@@ -150,6 +150,7 @@ int run(const Cli& cli) {
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(cfg.log.level));
+  app::set_libcaer_log_level(cfg.log.level);  // libcaer's own log follows --log-level / log.level
   // The program's input files: no output (poses CSV, LCM log) may be one of them (docs/operations.md, "Files").
   const std::vector<std::string> inputs = {cli.config_path, cfg.source.replay, cfg.pose.camera,
                                            cfg.pose.model,  cfg.pose.prior,    cfg.pose.ground_truth};
@@ -198,7 +199,7 @@ int run(const Cli& cli) {
         source = std::move(reader);
       }
     } else {
-      source = app::open_live_source(cfg.device);
+      source = app::open_live_source(cfg.device, cfg.log.level);
     }
   } catch (const SourceError& e) {
     std::fprintf(stderr, "evpipe: %s\n", e.what());
@@ -447,7 +448,8 @@ int main(int argc, char** argv) {
 
   Cli cli;
   CLI::App app{"evpipe: DAVIS346 event-camera pipeline (replay a recording, or read the camera over USB)"};
-  app.set_version_flag("--version", "evpipe 0.1.0");
+  // "evpipe <version>" and the libcaer it was built with ("libcaer: 3.3.15" or "libcaer: stub: no camera support").
+  app.set_version_flag("--version", std::string("evpipe " EVPIPE_VERSION "\n") + evpipe::app::libcaer_version_line());
   app.add_option("--replay", cli.replay, "Replay a recording (AEDAT 2.0/3.1/4.0 or text) instead of the camera");
   app.add_option("--config", cli.config_path, "Run configuration (YAML); command-line options override it")
       ->check(CLI::ExistingFile);
