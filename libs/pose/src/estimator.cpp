@@ -26,6 +26,21 @@ void EstimatorOptions::validate() const {
   if (!(reinit_angle_tolerance_deg > 0.0 && reinit_angle_tolerance_deg <= 180.0))
     throw std::invalid_argument(
         fmt::format("pose.reinit_angle_tolerance_deg: must be in (0, 180], got {}", reinit_angle_tolerance_deg));
+  const StandstillOptions& s = standstill;
+  if (!(s.band_px > 0.0 && s.band_px <= s.gate_px && s.gate_px <= s.far_px) || s.cell_px < 1) {
+    throw std::invalid_argument(
+        fmt::format("pose standstill: need 0 < band_px <= gate_px <= far_px and cell_px >= 1, got {} / {} / {} / {}",
+                    s.band_px, s.gate_px, s.far_px, s.cell_px));
+  }
+  if (!(s.significance > 0.0 && s.significance < 1.0) || !(s.max_motion_px > 0.0))
+    throw std::invalid_argument(
+        fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
+                    "got {} / {}",
+                    s.significance, s.max_motion_px));
+  if (!(hold_entry_max_motion_px >= 0.0) || hold_contradicted_windows < 1)
+    throw std::invalid_argument(
+        fmt::format("pose hold: hold_entry_max_motion_px must be >= 0 and hold_contradicted_windows >= 1, got {} / {}",
+                    hold_entry_max_motion_px, hold_contradicted_windows));
 }
 
 PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model,
@@ -46,11 +61,15 @@ void PoseEstimator::reset() {
   attempt_t_us_.reset();
   recent_.clear();
   track_ = TrackState{};
+  standstill_.stop();
   set_status(TrackStatus::initialising);
 }
 
 void PoseEstimator::set_status(TrackStatus s) {
-  if (status_ == TrackStatus::tracking && s == TrackStatus::lost) ++counters_.losses;
+  if ((status_ == TrackStatus::tracking || status_ == TrackStatus::holding) && s == TrackStatus::lost) {
+    ++counters_.losses;
+  }
+  if (s != TrackStatus::holding) standstill_.stop();
   status_ = s;
 }
 
@@ -89,6 +108,7 @@ PoseEstimate PoseEstimator::held_estimate(EventSpan window, std::int64_t t_end_u
   out.window_events = window.size();
   out.status = status_;
   if (track_.last) {
+    out.t_last_update_us = track_.last->t_us;
     out.T_cam_model = track_.last->pose;
   } else if (prior_) {
     out.T_cam_model = prior_->pose;
@@ -174,6 +194,7 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
   set_status(TrackStatus::tracking);
   out.status = status_;
   publish_update(u, out);
+  out.t_last_update_us = outcome.t_us;
   out.initialised_now = true;
   return out;
 }
@@ -189,9 +210,9 @@ PoseEstimate PoseEstimator::initialising_window(EventSpan window, std::int64_t t
 PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, EventSpan window,
                                                     std::int64_t t_end_us) {
   attempt_t_us_.reset();
-  if (outcome.generation != generation_ || status_ == TrackStatus::tracking) {
+  if (outcome.generation != generation_ || !needs_initialisation()) {
     // Stale (a reset since) or already tracking: this window is an ordinary one.
-    return status_ == TrackStatus::tracking ? process(window, t_end_us) : initialising_window(window, t_end_us);
+    return !needs_initialisation() ? process(window, t_end_us) : initialising_window(window, t_end_us);
   }
   if (!outcome.ok || outcome.t_us == t_end_us) {
     ++counters_.windows;
@@ -257,8 +278,27 @@ PoseEstimate PoseEstimator::counted(PoseEstimate out) {
 }
 
 PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, EventSpan history) {
+  if (status_ == TrackStatus::holding) return hold_step(window, t_end_us, history);
+  const TrackState before = track_;
   std::uint64_t unhealthy = 0;
   PoseEstimate out = track_step(track_, window, t_end_us, history, unhealthy);
+  if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking) {
+    // Unhealthy: a still target (no events to measure it on) or a lost one? Decided on the last good pose.
+    TrackState after = std::move(track_);
+    track_ = before;
+    if (try_hold(window, t_end_us)) {
+      track_.unhealthy_in_a_row = 0;
+      track_.previous.reset();  // the target is still: when it moves again, predict from rest
+      ++counters_.holds;
+      set_status(TrackStatus::holding);
+      hold_previous_t_us_ = t_end_us;
+      hold_contradicted_ = 0;
+      PoseEstimate held = held_pose(t_end_us, window.size());
+      held.note = "holding: no motion near the model beyond the noise (" + out.note + ")";
+      return held;
+    }
+    track_ = std::move(after);
+  }
   counters_.unhealthy_updates += unhealthy;
   if (track_.lost) set_status(TrackStatus::lost);
   out.status = status_;
@@ -281,8 +321,11 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
     state.unhealthy_in_a_row = 0;
     state.previous = state.last;
     state.last = camera::StampedPose{t_end_us, u.T_cam_model};
+    state.last_update = u;
     publish_update(u, out);
+    out.t_last_update_us = t_end_us;
   } else {
+    out.t_last_update_us = state.last->t_us;
     ++unhealthy;
     ++state.unhealthy_in_a_row;
     out.T_cam_model = state.last->pose;  // hold the last good pose; not published as valid
@@ -302,7 +345,8 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
 }
 
 PoseEstimator::TrackState PoseEstimator::start_state(const InitOutcome& outcome) {
-  return TrackState{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model}, outcome.previous, 0, false};
+  return TrackState{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model}, outcome.previous, 0, false,
+                    outcome.polished};
 }
 
 int PoseEstimator::catch_up(TrackState& state, std::int64_t from_us, std::int64_t to_us, EventSpan events,
@@ -344,6 +388,114 @@ InitOutcome PoseEstimator::advance_initialisation(const InitOutcome& outcome, Ev
   advanced.caught_up_slices = outcome.caught_up_slices + slices;
   advanced.caught_up_unhealthy = outcome.caught_up_unhealthy + unhealthy;
   return advanced;
+}
+
+double PoseEstimator::image_motion_per_window_px(const TrackState& state) const {
+  if (!state.previous || !state.last || state.last->t_us <= state.previous->t_us) return 0.0;
+  double moved2 = 0.0;
+  for (const camera::Segment3& s : model_.segments_m) {
+    for (const Eigen::Vector3d* P : {&s.a_m, &s.b_m}) {
+      const Eigen::Vector3d p0 = state.previous->pose.apply(*P), p1 = state.last->pose.apply(*P);
+      if (!(p0.z() > 1e-3) || !(p1.z() > 1e-3)) continue;
+      moved2 = std::max(moved2, (p0.head<2>() / p0.z() - p1.head<2>() / p1.z()).squaredNorm());
+    }
+  }
+  const double per_us =
+      std::sqrt(moved2) * focal_px(camera_) / static_cast<double>(state.last->t_us - state.previous->t_us);
+  return per_us * static_cast<double>(std::max<std::int64_t>(options_.track.window_us, 1));
+}
+
+bool PoseEstimator::try_hold(EventSpan window, std::int64_t t_end_us) {
+  (void)t_end_us;
+  if (!track_.last || image_motion_per_window_px(track_) > options_.hold_entry_max_motion_px) return false;
+  if (!standstill_.start(camera_, map_, model_, track_.last->pose, options_.standstill)) return false;
+  const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
+  const StandstillEvidence ev =
+      standstill_.observe(window, window_us, std::numeric_limits<std::int64_t>::min(), window_us);
+  hold_newest_counted_us_ = window.empty() ? std::numeric_limits<std::int64_t>::min() : window.back().t_us;
+  if (ev.moving || ev.unexplained) {
+    standstill_.stop();
+    return false;
+  }
+  return true;
+}
+
+PoseEstimate PoseEstimator::held_pose(std::int64_t t_end_us, std::size_t window_events) const {
+  PoseEstimate out;
+  out.t_us = t_end_us;
+  out.t_last_update_us = track_.last->t_us;
+  out.T_cam_model = track_.last->pose;
+  out.pose_valid = true;
+  out.status = TrackStatus::holding;
+  out.covariance = track_.last_update.covariance;
+  out.covariance_known = track_.last_update.covariance_known;
+  out.sigma_px = track_.last_update.sigma_px;
+  out.window_events = window_events;
+  return out;
+}
+
+PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, EventSpan history) {
+  const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
+  const std::int64_t fresh_us = std::clamp<std::int64_t>(t_end_us - hold_previous_t_us_, 0, window_us);
+  hold_previous_t_us_ = t_end_us;
+  const StandstillEvidence ev = standstill_.observe(window, window_us, hold_newest_counted_us_ + 1, fresh_us);
+  if (!window.empty()) hold_newest_counted_us_ = std::max(hold_newest_counted_us_, window.back().t_us);
+  if (!ev.moving) {
+    hold_contradicted_ = ev.unexplained ? hold_contradicted_ + 1 : 0;
+    if (hold_contradicted_ < options_.hold_contradicted_windows) {
+      PoseEstimate out = held_pose(t_end_us, window.size());
+      if (ev.unexplained) {
+        out.note = fmt::format("holding, but activity away from the model for {} windows", hold_contradicted_);
+      }
+      return out;
+    }
+    // The hold is contradicted for too long: the target may have moved where the model cannot see it.
+    PoseEstimate out = held_estimate(window, t_end_us);
+    track_.lost = true;
+    track_.previous.reset();
+    set_status(TrackStatus::lost);
+    out.status = status_;
+    out.note = fmt::format("lost: activity away from the held model for {} windows in a row", hold_contradicted_);
+    return out;
+  }
+  // Motion near the model: measure it from the held pose (zero velocity).
+  const camera::Pose& held = track_.last->pose;
+  const EventSpan events = tracking_events(window, t_end_us, history);
+  const TrackUpdate u = track_window(events, map_, model_, held, options_.track);
+  const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, held) > options_.max_step_m ||
+                                    camera::rotation_angle_deg(u.T_cam_model, held) > options_.max_step_deg);
+  PoseEstimate out;
+  out.t_us = t_end_us;
+  out.window_events = events.size();
+  if (u.healthy && !jumped) {
+    track_.unhealthy_in_a_row = 0;
+    track_.previous.reset();
+    track_.last = camera::StampedPose{t_end_us, u.T_cam_model};
+    track_.last_update = u;
+    ++counters_.hold_resumes;
+    set_status(TrackStatus::tracking);
+    publish_update(u, out);
+    out.t_last_update_us = t_end_us;
+    out.status = status_;
+    return out;
+  }
+  // It moves, but no pose can be measured: not held (a held pose must not become a wrong one), unhealthy.
+  ++counters_.unhealthy_updates;
+  ++track_.unhealthy_in_a_row;
+  out.T_cam_model = held;
+  out.t_last_update_us = track_.last->t_us;
+  out.inliers = u.inliers;
+  out.sigma_px = u.sigma_px;
+  out.note = fmt::format("holding ended: motion near the model (~{:.1f} px) that tracking cannot measure: {}",
+                         ev.implied_motion_px, jumped ? std::string("the update jumped") : u.reason);
+  if (track_.unhealthy_in_a_row >= options_.lost_after_windows) {
+    track_.lost = true;
+    set_status(TrackStatus::lost);
+    out.status = status_;
+  } else {
+    out.status = TrackStatus::tracking;  // not valid; the hold's evidence is kept for the next window
+  }
+  return out;
 }
 
 }  // namespace evpipe::pose
