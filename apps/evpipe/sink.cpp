@@ -22,6 +22,7 @@ namespace {
 transport::PoseRecord to_record(const pose::PoseEstimate& e, bool connected) {
   transport::PoseRecord r;
   r.t_us = e.t_us;
+  r.t_last_update_us = e.t_last_update_us;
   r.status = static_cast<transport::TrackingStatus>(e.status);
   r.pose_valid = e.pose_valid;
   r.T_cam_model = e.T_cam_model;

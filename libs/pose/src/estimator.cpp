@@ -27,12 +27,13 @@ void EstimatorOptions::validate() const {
     throw std::invalid_argument(
         fmt::format("pose.reinit_angle_tolerance_deg: must be in (0, 180], got {}", reinit_angle_tolerance_deg));
   const StandstillOptions& s = standstill;
-  if (!(s.band_px > 0.0 && s.band_px <= s.gate_px && s.gate_px <= s.far_px) || s.cell_px < 1) {
+  if (!(s.band_px > 0.0 && s.band_px <= s.gate_px && s.gate_px <= s.far_px && s.far_px < s.background_px) ||
+      s.cell_px < 1) {
     throw std::invalid_argument(
         fmt::format("pose standstill: need 0 < band_px <= gate_px <= far_px and cell_px >= 1, got {} / {} / {} / {}",
                     s.band_px, s.gate_px, s.far_px, s.cell_px));
   }
-  if (!(s.significance > 0.0 && s.significance < 1.0) || !(s.max_motion_px > 0.0))
+  if (!(s.significance > 0.0 && s.significance < 1.0) || !(s.max_motion_px > 0.0) || !(s.memory_s > 0.0))
     throw std::invalid_argument(
         fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
                     "got {} / {}",
@@ -282,6 +283,24 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
   const TrackState before = track_;
   std::uint64_t unhealthy = 0;
   PoseEstimate out = track_step(track_, window, t_end_us, history, unhealthy);
+  if (out.pose_valid && options_.hold && !signal_near(window, out.T_cam_model)) {
+    // Healthy on paper, but the window has no more events near the fitted model than the noise explains: the
+    // update fitted noise (a still target under a high noise rate), it measured nothing.
+    const std::string why = fmt::format(
+        "tracking: no more events near the fitted model than the noise explains ({} "
+        "inliers, sigma {:.2f} px)",
+        out.inliers, out.sigma_px);
+    track_ = before;
+    unhealthy = 1;
+    if (++track_.unhealthy_in_a_row >= options_.lost_after_windows) {
+      track_.lost = true;
+      track_.previous.reset();
+    }
+    const std::size_t used = out.window_events;
+    out = held_estimate(window, t_end_us);
+    out.window_events = used;
+    out.note = why;
+  }
   if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking) {
     // Unhealthy: a still target (no events to measure it on) or a lost one? Decided on the last good pose.
     TrackState after = std::move(track_);
@@ -405,6 +424,16 @@ double PoseEstimator::image_motion_per_window_px(const TrackState& state) const 
   return per_us * static_cast<double>(std::max<std::int64_t>(options_.track.window_us, 1));
 }
 
+bool PoseEstimator::signal_near(EventSpan window, const camera::Pose& T_cam_model) {
+  if (!probe_.start(camera_, map_, model_, T_cam_model, options_.standstill)) return false;
+  const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
+  const StandstillEvidence ev = probe_.observe(window, window_us, std::numeric_limits<std::int64_t>::min(), window_us);
+  // Significant, and enough of it for the tracker's own minimum: the inliers of a fit (within ~4.7 sigma of the
+  // edges, inside the near band at sigma < 0.7 px) are then mostly the target's events, not the noise's.
+  return ev.signal &&
+         static_cast<double>(ev.near) - ev.expected_near >= static_cast<double>(options_.track.min_inliers);
+}
+
 bool PoseEstimator::try_hold(EventSpan window, std::int64_t t_end_us) {
   (void)t_end_us;
   if (!track_.last || image_motion_per_window_px(track_) > options_.hold_entry_max_motion_px) return false;
@@ -461,7 +490,11 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   // Motion near the model: measure it from the held pose (zero velocity).
   const camera::Pose& held = track_.last->pose;
   const EventSpan events = tracking_events(window, t_end_us, history);
-  const TrackUpdate u = track_window(events, map_, model_, held, options_.track);
+  TrackUpdate u = track_window(events, map_, model_, held, options_.track);
+  if (u.healthy && !signal_near(window, u.T_cam_model)) {
+    u.healthy = false;
+    u.reason = "no more events near the fitted model than the noise explains";
+  }
   const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, held) > options_.max_step_m ||
                                     camera::rotation_angle_deg(u.T_cam_model, held) > options_.max_step_deg);
   PoseEstimate out;

@@ -75,8 +75,8 @@ bool StandstillMonitor::start(const camera::CameraModel& camera, const Undistort
         c = 2;
         area_ring_ += 1.0;
       } else if (d > o_.far_px) {
-        c = 0;
-        area_far_ += 1.0;
+        c = d <= o_.background_px ? 4 : 0;
+        if (c == 4) area_far_ += 1.0;
         ++cell_far_area_[static_cast<std::size_t>((y / o_.cell_px) * cells_x_ + x / o_.cell_px)];
       }
       cls_[static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(x)] = c;
@@ -101,9 +101,11 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
     const std::size_t i = static_cast<std::size_t>(e.y) * static_cast<std::size_t>(width_) + e.x;
     const bool fresh = e.t_us >= fresh_from_us;
     switch (cls_[i]) {
-      case 0:
+      case 4:
         ++ev.far;
         fresh_far += fresh;
+        [[fallthrough]];
+      case 0:
         if (stamp_[i] != window_id_) {
           stamp_[i] = window_id_;
           ++cell_count_[static_cast<std::size_t>((e.y / o_.cell_px) * cells_x_ + e.x / o_.cell_px)];
@@ -121,6 +123,11 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
         break;
     }
   }
+  const double keep = std::exp(-1e-6 * static_cast<double>(std::max<std::int64_t>(fresh_us, 0)) / o_.memory_s);
+  acc_near_ *= keep;
+  acc_ring_ *= keep;
+  acc_far_ *= keep;
+  acc_exposure_s_ *= keep;
   acc_near_ += static_cast<double>(fresh_near);
   acc_ring_ += static_cast<double>(fresh_ring);
   acc_far_ += static_cast<double>(fresh_far);
@@ -140,6 +147,7 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
         poisson_upper_tail(static_cast<std::uint64_t>(n_near + n_ring), mu_near + mu_ring) < o_.significance;
     return significant && implied > o_.max_motion_px;
   };
+  ev.signal = poisson_upper_tail(ev.near, ev.expected_near) < o_.significance;
   double implied_window = 0.0, implied_hold = 0.0;
   const bool moving_window =
       moving(static_cast<double>(ev.near), static_cast<double>(ev.ring), window_s, implied_window);

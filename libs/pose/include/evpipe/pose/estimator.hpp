@@ -212,6 +212,8 @@ class PoseEstimator {
   /// Standstill: after an unhealthy update (state restored to before it), does this window allow a hold at the
   /// last pose? Starts the monitor when it does.
   bool try_hold(EventSpan window, std::int64_t t_end_us);
+  /// Does the window have significantly more events near the model at this pose than the noise explains?
+  bool signal_near(EventSpan window, const camera::Pose& T_cam_model);
   /// A window while holding.
   PoseEstimate hold_step(EventSpan window, std::int64_t t_end_us, EventSpan history);
   PoseEstimate held_pose(std::int64_t t_end_us, std::size_t window_events) const;
@@ -231,6 +233,7 @@ class PoseEstimator {
   std::uint64_t generation_{0};
   std::optional<std::int64_t> attempt_t_us_;  ///< an attempt prepared and not completed: its window's time
   StandstillMonitor standstill_;              ///< active while holding
+  StandstillMonitor probe_;                   ///< signal_near's scratch
   std::int64_t hold_previous_t_us_{0};        ///< the previous window's time while holding
   int hold_contradicted_{0};                  ///< windows in a row with unexplained activity while holding
   std::int64_t hold_newest_counted_us_{0};    ///< newest event counted into the hold's totals

@@ -27,8 +27,11 @@ namespace evpipe::pose {
 struct StandstillOptions {
   double band_px = 3.0;   ///< events within this of a projected edge are `near` (the first events of a restart)
   double gate_px = 10.0;  ///< ... within this, `ring` (events the tracker would associate: the edge moved off)
-  double far_px = 20.0;   ///< events further than this from every edge measure the noise rate
-  int cell_px = 16;       ///< cells of the test for activity elsewhere
+  double far_px = 20.0;   ///< events further than this from every edge are background
+  /// The noise rate is measured on the background within this distance of the edges (the same part of the image:
+  /// a denoiser's output is not uniform, it keeps fewer noise events near the sensor border, for one).
+  double background_px = 40.0;
+  int cell_px = 16;  ///< cells of the test for activity elsewhere
   /// One-sided significance of each Poisson test (the cell test divides it by the number of cells).
   double significance = 1e-3;
   /// Image motion (pixels) that the excess events near the model may stand for before the held pose must be
@@ -36,6 +39,11 @@ struct StandstillOptions {
   /// (one per pixel it crosses at a contrast above the threshold; evsim's default edges make ~3.6), so the
   /// motion is at most excess / visible length.
   double max_motion_px = 1.0;
+  /// The hold's counts (noise rate, accumulated excess) forget with this time constant: a slow drift of the
+  /// noise's spatial pattern (a denoiser's output is only roughly Poisson) must not add up to "motion" over a long
+  /// stop. A creep of the target is still seen: it makes ~3.6 events per pixel of edge crossed, so at
+  /// >= max_motion_px / (3.6 x memory) px/s the accumulated excess implies > max_motion_px.
+  double memory_s = 1.0;
 };
 
 /// What one window (or the hold so far) says.
@@ -46,6 +54,7 @@ struct StandstillEvidence {
   double implied_motion_px{0.0};  ///< excess in near + ring / visible length (window or hold, the larger)
   bool moving{false};             ///< significant excess near the model implying > max_motion_px (window or hold)
   bool unexplained{false};        ///< a cell away from the model with significantly more active pixels than noise
+  bool signal{false};             ///< the window alone: significantly more events in `near` than the noise explains
 };
 
 /// P(X >= n) for X ~ Poisson(mu) (1 when n <= mu is not computed exactly: the test only needs small tails).
@@ -70,7 +79,7 @@ class StandstillMonitor {
   StandstillOptions o_;
   int width_{0}, height_{0};
   int cells_x_{0}, cells_y_{0};
-  std::vector<std::uint8_t> cls_;  ///< per pixel: 0 far, 1 near, 2 ring, 3 margin
+  std::vector<std::uint8_t> cls_;  ///< per pixel: 0 far, 1 near, 2 ring, 3 margin, 4 far and within background_px
   std::vector<std::uint32_t> cell_far_area_;
   std::vector<std::uint32_t> stamp_;  ///< per pixel: the window that last counted it (distinct pixels per cell)
   std::vector<std::uint32_t> cell_count_;
