@@ -8,7 +8,7 @@ namespace evpipe::app {
 pose::PoseEstimate PoseProcessor::process(const EventWindow& window) {
   if (stage_) return stage_->process(window);
   pose::PoseEstimate none;
-  none.t_us = window.t1_us;
+  none.t_us = window.t0_us + (window.t1_us - window.t0_us) / 2;  // the window's middle, as the pose stage's
   none.window_events = window.size();
   none.note = "no pose stage (no --camera/--model)";
   return none;

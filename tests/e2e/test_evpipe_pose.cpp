@@ -248,5 +248,8 @@ TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
   // `adaptive: false` is the paper's fixed 5, as evdenoise runs it.
   EXPECT_EQ(json_field(paper.out, "adaptive_periods"), "0");
   EXPECT_EQ(json_field(paper.out, "density_threshold_used"), "5");
-  EXPECT_LT(std::stoi(json_field(paper.out, "pose_updates")), std::stoi(json_field(adaptive.out, "pose_updates")));
+  // The fixed threshold starves the tracker of the slow edges: fewer windows measured (holding fills some of the
+  // others with the last measured pose: the valid count alone does not show it).
+  EXPECT_LT(std::stod(json_field(paper.out, "pose_tracking_share")),
+            std::stod(json_field(adaptive.out, "pose_tracking_share")));
 }

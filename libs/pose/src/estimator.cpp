@@ -33,7 +33,8 @@ void EstimatorOptions::validate() const {
         fmt::format("pose standstill: need 0 < band_px <= gate_px <= far_px and cell_px >= 1, got {} / {} / {} / {}",
                     s.band_px, s.gate_px, s.far_px, s.cell_px));
   }
-  if (!(s.significance > 0.0 && s.significance < 1.0) || !(s.max_motion_px > 0.0) || !(s.memory_s > 0.0))
+  if (!(s.significance > 0.0 && s.significance < 1.0) || !(s.max_motion_px > 0.0) || !(s.memory_s > 0.0) ||
+      !(s.min_motion_events > 0.0))
     throw std::invalid_argument(
         fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
                     "got {} / {}",
@@ -283,7 +284,7 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
   const TrackState before = track_;
   std::uint64_t unhealthy = 0;
   PoseEstimate out = track_step(track_, window, t_end_us, history, unhealthy);
-  if (out.pose_valid && options_.hold && !signal_near(window, out.T_cam_model)) {
+  if (out.pose_valid && options_.hold && !signal_near(tracking_events(window, t_end_us, history), out.T_cam_model)) {
     // Healthy on paper, but the window has no more events near the fitted model than the noise explains: the
     // update fitted noise (a still target under a high noise rate), it measured nothing.
     const std::string why = fmt::format(
@@ -409,25 +410,32 @@ InitOutcome PoseEstimator::advance_initialisation(const InitOutcome& outcome, Ev
   return advanced;
 }
 
-double PoseEstimator::image_motion_per_window_px(const TrackState& state) const {
-  if (!state.previous || !state.last || state.last->t_us <= state.previous->t_us) return 0.0;
+double PoseEstimator::image_motion_px(const camera::Pose& a, const camera::Pose& b) const {
   double moved2 = 0.0;
   for (const camera::Segment3& s : model_.segments_m) {
     for (const Eigen::Vector3d* P : {&s.a_m, &s.b_m}) {
-      const Eigen::Vector3d p0 = state.previous->pose.apply(*P), p1 = state.last->pose.apply(*P);
+      const Eigen::Vector3d p0 = a.apply(*P), p1 = b.apply(*P);
       if (!(p0.z() > 1e-3) || !(p1.z() > 1e-3)) continue;
       moved2 = std::max(moved2, (p0.head<2>() / p0.z() - p1.head<2>() / p1.z()).squaredNorm());
     }
   }
-  const double per_us =
-      std::sqrt(moved2) * focal_px(camera_) / static_cast<double>(state.last->t_us - state.previous->t_us);
-  return per_us * static_cast<double>(std::max<std::int64_t>(options_.track.window_us, 1));
+  return std::sqrt(moved2) * focal_px(camera_);
 }
 
-bool PoseEstimator::signal_near(EventSpan window, const camera::Pose& T_cam_model) {
+double PoseEstimator::image_motion_per_window_px(const TrackState& state) const {
+  if (!state.previous || !state.last || state.last->t_us <= state.previous->t_us) return 0.0;
+  return image_motion_px(state.previous->pose, state.last->pose) /
+         static_cast<double>(state.last->t_us - state.previous->t_us) *
+         static_cast<double>(std::max<std::int64_t>(options_.track.window_us, 1));
+}
+
+bool PoseEstimator::signal_near(EventSpan events, const camera::Pose& T_cam_model) {
   if (!probe_.start(camera_, map_, model_, T_cam_model, options_.standstill)) return false;
-  const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
-  const StandstillEvidence ev = probe_.observe(window, window_us, std::numeric_limits<std::int64_t>::min(), window_us);
+  // The events the update used (a sparse window extended to the newest events): their span is the exposure.
+  std::int64_t exposure_us = std::max<std::int64_t>(options_.track.window_us, 1);
+  if (!events.empty()) exposure_us = std::max(exposure_us, events.back().t_us - events.front().t_us + 1);
+  const StandstillEvidence ev =
+      probe_.observe(events, exposure_us, std::numeric_limits<std::int64_t>::min(), exposure_us);
   // Significant, and enough of it for the tracker's own minimum: the inliers of a fit (within ~4.7 sigma of the
   // edges, inside the near band at sigma < 0.7 px) are then mostly the target's events, not the noise's.
   return ev.signal &&
@@ -470,6 +478,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   const StandstillEvidence ev = standstill_.observe(window, window_us, hold_newest_counted_us_ + 1, fresh_us);
   if (!window.empty()) hold_newest_counted_us_ = std::max(hold_newest_counted_us_, window.back().t_us);
   if (!ev.moving) {
+    track_.unhealthy_in_a_row = 0;  // "in a row": a window without motion ends a run of unmeasurable ones
     hold_contradicted_ = ev.unexplained ? hold_contradicted_ + 1 : 0;
     if (hold_contradicted_ < options_.hold_contradicted_windows) {
       PoseEstimate out = held_pose(t_end_us, window.size());
@@ -489,14 +498,21 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   }
   // Motion near the model: measure it from the held pose (zero velocity).
   const camera::Pose& held = track_.last->pose;
-  const EventSpan events = tracking_events(window, t_end_us, history);
+  // The window alone: the motion's events are fresh, the extension to older events would add only the still
+  // period's noise (a fit on it started 30 mm off on a 10 s stop at 5 Hz/px).
+  const EventSpan events = window;
+  (void)history;
   TrackUpdate u = track_window(events, map_, model_, held, options_.track);
-  if (u.healthy && !signal_near(window, u.T_cam_model)) {
+  if (u.healthy && !signal_near(events, u.T_cam_model)) {
     u.healthy = false;
     u.reason = "no more events near the fitted model than the noise explains";
   }
+  // From rest, and seen first within the association gate of the held model: a measured pose whose model image
+  // lies further than that gate from the held one is not this motion's onset (a fit on its few events and the
+  // noise, seen 25 mm / 11 deg off).
   const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, held) > options_.max_step_m ||
-                                    camera::rotation_angle_deg(u.T_cam_model, held) > options_.max_step_deg);
+                                    camera::rotation_angle_deg(u.T_cam_model, held) > options_.max_step_deg ||
+                                    image_motion_px(held, u.T_cam_model) > options_.standstill.gate_px);
   PoseEstimate out;
   out.t_us = t_end_us;
   out.window_events = events.size();

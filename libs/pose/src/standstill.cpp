@@ -147,10 +147,15 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
         poisson_upper_tail(static_cast<std::uint64_t>(n_near + n_ring), mu_near + mu_ring) < o_.significance;
     return significant && implied > o_.max_motion_px;
   };
+  // Motion along an edge makes no events, so the length bound can miss the motion of a target whose moving edges
+  // are few: a window's significant excess of min_motion_events or more is worth a measurement in any case.
+  const double excess_window = static_cast<double>(ev.near + ev.ring) - ev.expected_near - ev.expected_ring;
   ev.signal = poisson_upper_tail(ev.near, ev.expected_near) < o_.significance;
   double implied_window = 0.0, implied_hold = 0.0;
   const bool moving_window =
-      moving(static_cast<double>(ev.near), static_cast<double>(ev.ring), window_s, implied_window);
+      moving(static_cast<double>(ev.near), static_cast<double>(ev.ring), window_s, implied_window) ||
+      (excess_window >= o_.min_motion_events &&
+       poisson_upper_tail(ev.near + ev.ring, ev.expected_near + ev.expected_ring) < o_.significance);
   const bool moving_hold = moving(acc_near_, acc_ring_, exposure_s, implied_hold);
   ev.implied_motion_px = std::max(implied_window, implied_hold);
   ev.moving = moving_window || moving_hold;

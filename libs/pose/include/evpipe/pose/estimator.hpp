@@ -212,12 +212,15 @@ class PoseEstimator {
   /// Standstill: after an unhealthy update (state restored to before it), does this window allow a hold at the
   /// last pose? Starts the monitor when it does.
   bool try_hold(EventSpan window, std::int64_t t_end_us);
-  /// Does the window have significantly more events near the model at this pose than the noise explains?
-  bool signal_near(EventSpan window, const camera::Pose& T_cam_model);
+  /// Do the events an update used have significantly more events near the model at this pose than the noise
+  /// explains (and at least the tracker's min_inliers more)?
+  bool signal_near(EventSpan events, const camera::Pose& T_cam_model);
   /// A window while holding.
   PoseEstimate hold_step(EventSpan window, std::int64_t t_end_us, EventSpan history);
   PoseEstimate held_pose(std::int64_t t_end_us, std::size_t window_events) const;
   [[nodiscard]] double image_motion_per_window_px(const TrackState& state) const;
+  /// Largest image motion (px) of the model's segment ends between two poses.
+  [[nodiscard]] double image_motion_px(const camera::Pose& a, const camera::Pose& b) const;
 
   camera::CameraModel camera_;
   /// The camera's undistortion table, built with the estimator (at start-up) and only read after: the tracking

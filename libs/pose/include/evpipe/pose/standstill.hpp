@@ -39,6 +39,10 @@ struct StandstillOptions {
   /// (one per pixel it crosses at a contrast above the threshold; evsim's default edges make ~3.6), so the
   /// motion is at most excess / visible length.
   double max_motion_px = 1.0;
+  /// ... or a window's significant excess of at least this many events near the model (motion along an edge makes
+  /// none, so the length bound alone can miss a target whose moving edges are few): half the tracker's
+  /// min_inliers, worth a measurement.
+  double min_motion_events = 50.0;
   /// The hold's counts (noise rate, accumulated excess) forget with this time constant: a slow drift of the
   /// noise's spatial pattern (a denoiser's output is only roughly Poisson) must not add up to "motion" over a long
   /// stop. A creep of the target is still seen: it makes ~3.6 events per pixel of edge crossed, so at
