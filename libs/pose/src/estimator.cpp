@@ -133,8 +133,24 @@ std::optional<InitJob> PoseEstimator::prepare_initialisation(EventSpan window, s
 }
 
 std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_end_us, PoseEstimate& skipped) {
-  // The window alone when it is rich enough (the freshest view), else the accumulated events.
-  const EventSpan events = window.size() < options_.init_target_events ? EventSpan(recent_) : window;
+  // The window alone when it is rich enough (the freshest view), else the accumulated events: the newest
+  // init_target_events of the last init_accumulate_us. Every other attempt (slow motion: too few events of the
+  // target's edges in that, or drowned in the noise) the newest init_long_target_events of the last
+  // init_long_accumulate_us instead, whatever the window's size (windows sized by count, ELOPET-style: at a high
+  // event rate the span stays short by itself).
+  const auto newest = [&](std::size_t count, std::int64_t span_us) {
+    auto first = recent_.end() - static_cast<std::ptrdiff_t>(std::min(recent_.size(), count));
+    while (first != recent_.end() && first->t_us < t_end_us - span_us) ++first;
+    return EventSpan(first, recent_.end());
+  };
+  const bool longer = options_.init_long_accumulate_us > 0 && counters_.init_attempts % 2 == 1;
+  EventSpan events = window.size() < options_.init_target_events
+                         ? newest(options_.init_target_events, options_.init_accumulate_us)
+                         : window;
+  if (longer) {
+    const EventSpan more = newest(options_.init_long_target_events, options_.init_long_accumulate_us);
+    if (more.size() > events.size()) events = more;
+  }
   if (events.size() < options_.init_min_events) {
     skipped = held_estimate(window, t_end_us);
     skipped.note =
@@ -245,8 +261,9 @@ void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
   const std::int64_t newest_held = recent_.empty() ? std::numeric_limits<std::int64_t>::min() : recent_.back().t_us;
   std::vector<Event> scratch;
   const EventSpan fresh = events_after(window, newest_held, scratch);
-  std::int64_t oldest_kept = t_us - options_.init_accumulate_us;
-  std::size_t cap = std::max({options_.init_target_events, options_.track_min_events, window.size()});
+  std::int64_t oldest_kept = t_us - std::max(options_.init_accumulate_us, options_.init_long_accumulate_us);
+  const std::size_t long_events = options_.init_long_accumulate_us > 0 ? options_.init_long_target_events : 0;
+  std::size_t cap = std::max({options_.init_target_events, long_events, options_.track_min_events, window.size()});
   if (attempt_t_us_) {  // an attempt runs elsewhere: keep what the catch-up will track, within a bound
     oldest_kept = std::min(oldest_kept, *attempt_t_us_ - options_.track.window_us);
     cap = std::max(cap, kCatchUpMaxEvents);

@@ -42,6 +42,12 @@ struct EstimatorOptions {
   /// still uses the window alone.
   std::int64_t init_accumulate_us = 300'000;
   std::size_t init_target_events = 4000;
+  /// > 0: every other attempt uses the newest init_long_target_events of the last init_long_accumulate_us instead
+  /// (a slow target's edges move too little in 300 ms for LSD: no line at 0.02 m/s). Off by default: measured on
+  /// 0.02 m/s scenes it initialises (0 -> 47-89 % valid) but also on wrong poses at 5 Hz/px (roadheader 188 mm
+  /// RMSE) until initialisation is verified (issue 21); try e.g. 1'000'000 / 20'000.
+  std::int64_t init_long_accumulate_us = 0;
+  std::size_t init_long_target_events = 20'000;
   /// Tracking on a sparse window (slow target, or most events filtered out) uses the newest track_min_events
   /// events instead, none older than track_max_span_us (pose.md §8: windows sized by count, capped in time).
   std::size_t track_min_events = 1500;
