@@ -358,6 +358,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
     state.unhealthy_in_a_row = 0;
     state.previous = state.last;
     state.last = camera::StampedPose{t_end_us, u.T_cam_model};
+    state.previous_update = std::move(state.last_update);
     state.last_update = u;
     publish_update(u, out);
     out.t_last_update_us = t_end_us;
@@ -382,8 +383,12 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
 }
 
 PoseEstimator::TrackState PoseEstimator::start_state(const InitOutcome& outcome) {
-  return TrackState{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model}, outcome.previous, 0, false,
-                    outcome.polished};
+  return TrackState{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model},
+                    outcome.previous,
+                    0,
+                    false,
+                    outcome.polished,
+                    std::nullopt};
 }
 
 int PoseEstimator::catch_up(TrackState& state, std::int64_t from_us, std::int64_t to_us, EventSpan events,
@@ -461,7 +466,15 @@ bool PoseEstimator::signal_near(EventSpan events, const camera::Pose& T_cam_mode
 
 bool PoseEstimator::try_hold(EventSpan window, std::int64_t t_end_us) {
   (void)t_end_us;
-  if (!track_.last || image_motion_per_window_px(track_) > options_.hold_entry_max_motion_px) return false;
+  if (!track_.last) return false;
+  if (image_motion_per_window_px(track_) > options_.hold_entry_max_motion_px) {
+    // The last update moved the model faster than a target that stops within a window can: a fit on the vanishing
+    // events, not to be held. The pose before it may be (the tests below then decide on its model).
+    if (!track_.previous || !track_.previous_update) return false;
+    track_.last = track_.previous;
+    track_.last_update = *track_.previous_update;
+    track_.previous.reset();
+  }
   if (!standstill_.start(camera_, map_, model_, track_.last->pose, options_.standstill)) return false;
   const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
   const StandstillEvidence ev =

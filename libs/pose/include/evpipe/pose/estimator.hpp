@@ -198,6 +198,7 @@ class PoseEstimator {
     int unhealthy_in_a_row{0};
     bool lost{false};         ///< lost_after_windows unhealthy updates in a row
     TrackUpdate last_update;  ///< the update that measured `last` (its covariance is the held pose's)
+    std::optional<TrackUpdate> previous_update;  ///< the one that measured `previous`
   };
   /// history: the remembered events up to this window (recent_, or a prefix of it when catching up).
   PoseEstimate track(EventSpan window, std::int64_t t_end_us, EventSpan history);
