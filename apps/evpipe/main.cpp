@@ -2,8 +2,13 @@
 // by default) → 30 ms sliding windows → pose (OPnL initialisation, MM tracking) → LCM, one thread per stage
 // (libs/pipeline, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd; a summary at the end.
 //
-// Exit status: 0 success (also after SIGINT/SIGTERM), 1 runtime error (bad file, device), 2 usage or
-// configuration error.
+// Exit status: 0 success (also after SIGINT/SIGTERM/SIGHUP), 1 runtime error (bad file, device, an LCM log of which
+// nothing could be written), 2 usage or configuration error (also an output that is one of the inputs, an invalid
+// LCM URL).
+//
+// Signals (docs/operations.md, "Signals"): TERM, INT and HUP stop the run (drain, summary, exit 0); PIPE is ignored
+// (a closed stdout is a write error, reported on stderr); USR1 logs the status line. The poses CSV and the LCM log
+// are written whole row by row, so a kill loses no row already published.
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -21,10 +26,13 @@
 #include <thread>
 #include <vector>
 
+#include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/error.hpp"
+#include "evpipe/camera/line_model.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/config/run_config.hpp"
 #include "evpipe/core/error.hpp"
+#include "evpipe/core/file.hpp"
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/metrics/trajectory.hpp"
@@ -34,8 +42,10 @@
 #include "evpipe/service/notify.hpp"
 #include "evpipe/service/supervisor.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
+#include "evpipe/transport/lcm_url.hpp"
 #include "live.hpp"
 #include "pose_stage.hpp"
+#include "preview.hpp"
 #include "progress.hpp"
 #include "sink.hpp"
 #include "summary.hpp"
@@ -52,6 +62,11 @@ extern "C" void on_signal(int /*sig*/) {
   g_stop.store(true);
   if (auto* p = g_paced.load()) p->stop();
   if (auto* p = g_pipeline.load()) p->request_stop();
+}
+// SIGUSR1: the main loop logs the status line (a handler may not log).
+std::atomic<bool> g_status_request{false};
+extern "C" void on_usr1(int /*sig*/) {
+  g_status_request.store(true);
 }
 
 // The pipeline's stages in StageStats order (docs/architecture.md).
@@ -70,6 +85,13 @@ struct Cli {
   bool json = false;
   bool no_progress = false;
   bool print_config = false;
+  // The operator's view (issue 22, preview.hpp)
+  bool preview = false;
+  std::optional<double> preview_hz;
+  std::string video;
+  double video_fps = 0;
+  int png_every = 0;
+  std::string png_dir = ".";
 };
 
 evpipe::io::ReaderOptions reader_options(const evpipe::config::SourceConfig& s) {
@@ -115,6 +137,11 @@ int run(const Cli& cli) {
     if (!cli.denoise.empty()) cfg.denoise.filter = cli.denoise;
     if (cli.lcm_url) cfg.lcm.url = *cli.lcm_url;
     if (cli.no_lcm) cfg.lcm.enabled = false;
+    if (cli.preview) cfg.lcm.preview = true;
+    if (cli.preview_hz) {
+      cfg.lcm.preview = true;
+      cfg.lcm.preview_hz = *cli.preview_hz;
+    }
     cfg.validate();
     if (!cfg.pose.ground_truth.empty() && cfg.source.replay.empty())
       throw config::ConfigError("pose.ground_truth (--ground-truth): only for a replay (--replay)");
@@ -123,6 +150,15 @@ int run(const Cli& cli) {
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(cfg.log.level));
+  // The program's input files: no output (poses CSV, LCM log) may be one of them (docs/operations.md, "Files").
+  const std::vector<std::string> inputs = {cli.config_path, cfg.source.replay, cfg.pose.camera,
+                                           cfg.pose.model,  cfg.pose.prior,    cfg.pose.ground_truth};
+  if (cfg.lcm.enabled) {
+    if (const auto why = transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true)) {
+      std::fprintf(stderr, "evpipe: configuration error: lcm.url (--lcm-url): %s\n", why->c_str());
+      return 2;
+    }
+  }
   if (cli.print_config) {
     std::cout << cfg.to_yaml() << "\n";
     return 0;
@@ -137,7 +173,7 @@ int run(const Cli& cli) {
   if (!pc.camera.empty() || !pc.model.empty() || !pc.prior.empty() || !pc.poses_out.empty() ||
       !pc.ground_truth.empty()) {
     try {
-      pose_stage = app::PoseStage::create(cfg);
+      pose_stage = app::PoseStage::create(cfg, inputs);
       if (!pc.ground_truth.empty()) truth = camera::read_trajectory_csv(pc.ground_truth);
     } catch (const config::ConfigError& e) {
       std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
@@ -168,6 +204,30 @@ int run(const Cli& cli) {
     std::fprintf(stderr, "evpipe: %s\n", e.what());
     return 1;
   }
+  // The preview (LCM preview_t, --video, --png-every) sees the raw events through this wrapper (preview.hpp).
+  bool preview_lcm = cfg.lcm.preview && cfg.lcm.enabled;
+  if (cfg.lcm.preview && !cfg.lcm.enabled) spdlog::warn("LCM preview: off, because LCM is off (--no-lcm, lcm.enabled)");
+  if (transport::LcmUrl u; preview_lcm &&
+                           !transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true, &u) &&
+                           u.provider == "file") {
+    // The publisher writes that log; a second writer would clobber it (and a log is no place for pictures).
+    spdlog::warn("LCM preview: off, because lcm.url is an LCM log file (watch a live run over udpm instead)");
+    preview_lcm = false;
+  }
+  if (!cli.video.empty()) {
+    try {
+      check_output_file(cli.video, inputs);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evpipe: configuration error: --video: %s\n", e.what());
+      return 2;
+    }
+  }
+  app::RawTap* tap = nullptr;
+  if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
+    auto t = std::make_unique<app::RawTap>(std::move(source));
+    tap = t.get();
+    source = std::move(t);
+  }
   // Built once the source knows the sensor size; parameter errors are configuration errors.
   std::unique_ptr<denoise::Filter> filter;
   if (cfg.denoise.filter != "none") {
@@ -192,7 +252,13 @@ int run(const Cli& cli) {
     lo.url = cfg.lcm.url;
     lo.pose_channel = cfg.lcm.pose_channel;
     lo.stats_channel = cfg.lcm.stats_channel;
+    lo.inputs = inputs;
+    lo.inputs.push_back(cfg.pose.poses_out);
     publisher = std::make_unique<transport::LcmPublisher>(lo);
+    if (!publisher->can_recover()) {  // a log file that cannot be created: nothing to retry
+      std::fprintf(stderr, "evpipe: configuration error: lcm.url (--lcm-url): %s\n", publisher->last_error().c_str());
+      return 2;
+    }
     spdlog::info("LCM: {} on {} (poses) and {} (statistics){}", transport::effective_lcm_url(cfg.lcm.url),
                  lo.pose_channel, lo.stats_channel,
                  publisher->state() == transport::PublisherState::degraded
@@ -220,14 +286,44 @@ int run(const Cli& cli) {
                            ? cfg.denoise.threads
                            : std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 4);
   spdlog::debug("denoise: {} thread(s)", po.denoise_threads);
-  app::PoseProcessor processor(pose_stage.get());
   app::AppSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
+  std::unique_ptr<app::PreviewWorker> preview;
+  if (tap) {
+    app::PreviewOptions vo;
+    vo.hz = cfg.lcm.preview_hz;
+    vo.lcm = preview_lcm;
+    vo.lcm_url = cfg.lcm.url;
+    vo.lcm_channel = cfg.lcm.preview_channel;
+    vo.video = cli.video;
+    vo.video_fps = cli.video_fps;
+    vo.png_every = cli.png_every;
+    vo.png_dir = cli.png_dir;
+    vo.lossless = !live;  // a replay's video / stills have every window
+    std::optional<camera::CameraModel> cam;
+    std::optional<camera::LineModel> model;
+    if (pose_stage) {  // loaded once more for the drawing (create() has checked them)
+      cam = camera::load_camera(cfg.pose.camera);
+      model = camera::load_line_model(cfg.pose.model);
+    }
+    try {
+      preview = std::make_unique<app::PreviewWorker>(vo, tap, tap->info().geometry, cfg.window.hop_us, std::move(cam),
+                                                     std::move(model), &sink);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evpipe: preview: %s\n", e.what());
+      return 1;
+    }
+    sink.set_preview(preview.get());
+    if (preview_lcm) spdlog::info("LCM preview: {} Hz on {}", cfg.lcm.preview_hz, cfg.lcm.preview_channel);
+  }
+  app::PoseProcessor processor(pose_stage.get(), preview.get());
   pipeline::Pipeline pipe(std::move(source), std::move(filter), processor, sink, po);
 
   g_paced.store(paced);
   g_pipeline.store(&pipe);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::signal(SIGHUP, on_signal);  // a closed terminal or session: stop cleanly like TERM
+  std::signal(SIGUSR1, on_usr1);
 
   // systemd: READY once the threads run, STATUS= every second, WATCHDOG=1 only while every stage progresses.
   service::SupervisorOptions so;
@@ -249,6 +345,11 @@ int run(const Cli& cli) {
   supervisor.start();
   service::ready(live ? "reading the camera" : "replaying " + cfg.source.replay);
   while (!pipe.wait_for(std::chrono::milliseconds(100))) {
+    if (g_status_request.exchange(false)) {
+      const auto st = sink.latest_stats();
+      spdlog::info("status: {}",
+                   st ? app::status_line(*st, sink.latest_status(), pose_stage != nullptr) : std::string("starting"));
+    }
     if (progress.active()) {
       const auto st = pipe.stats();
       std::string extra =
@@ -264,6 +365,25 @@ int run(const Cli& cli) {
   supervisor.stop();
   g_pipeline.store(nullptr);
   progress.finish();
+
+  std::string preview_error;
+  if (preview) {
+    try {
+      preview->finish();
+    } catch (const std::exception& e) {
+      preview_error = fmt::format("preview: {}", e.what());
+    }
+    const auto c = preview->counters();
+    if (preview_lcm) {
+      spdlog::info("LCM preview: {} published ({:.1f} kB each on average), {} dropped, {} failed", c.published,
+                   c.published ? static_cast<double>(c.bytes) / static_cast<double>(c.published) / 1e3 : 0.0, c.dropped,
+                   c.publish_failures);
+    }
+    if (!cli.video.empty())
+      spdlog::info("video: {} frames of {}x{} ({}) written to {}", c.video_frames, c.video_width, c.video_height,
+                   c.video_codec, c.video_path);
+    if (cli.png_every > 0) spdlog::info("png: {} stills written to {}", c.pngs, cli.png_dir);
+  }
 
   const auto stats = pipe.stats();
   summary.stream = &pipe.stream_stats();
@@ -289,6 +409,10 @@ int run(const Cli& cli) {
     summary.lcm_poses = static_cast<std::uint64_t>(c.poses_published);
     summary.lcm_stats = static_cast<std::uint64_t>(c.stats_published);
     summary.lcm_failures = static_cast<std::uint64_t>(c.publish_failures);
+    if (publisher->writes_log() && c.publish_failures > 0) {
+      spdlog::warn("LCM log: {} of {} message(s) could not be written ({})", c.publish_failures,
+                   c.publish_failures + c.poses_published + c.stats_published, publisher->last_error());
+    }
   }
   if (pose_stage) summary.pose = pose_stage->summary();
   if (!truth.empty()) add_ate(summary, truth, sink.valid_poses());
@@ -297,8 +421,20 @@ int run(const Cli& cli) {
     summary.error = *err;
     spdlog::error("{}", *err);
     status = 1;
+  } else if (!preview_error.empty()) {
+    summary.error = preview_error;
+    spdlog::error("{}", preview_error);
+    status = 1;
+  }
+  if (status == 0 && publisher && publisher->writes_log() && summary.lcm_failures > 0 && summary.lcm_poses == 0 &&
+      summary.lcm_stats == 0) {
+    summary.error = fmt::format("LCM log {}: nothing could be written: {}", summary.lcm_url, publisher->last_error());
+    status = 1;
   }
   std::cout << (cli.json ? app::format_json(summary) : app::format_text(summary)) << std::flush;
+  if (!std::cout) {  // SIGPIPE is ignored: a closed stdout (`evpipe --json | true`) is a write error, said here
+    std::fprintf(stderr, "evpipe: could not write the summary to standard output (closed pipe?)\n");
+  }
   if (status != 0) std::fprintf(stderr, "evpipe: %s\n", summary.error.c_str());
   return status;
 }
@@ -306,6 +442,7 @@ int run(const Cli& cli) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::signal(SIGPIPE, SIG_IGN);  // a closed stdout/stderr is a write error, not death with rows unwritten
   spdlog::set_default_logger(evpipe::service::make_logger("evpipe"));
 
   Cli cli;
@@ -329,6 +466,16 @@ int main(int argc, char** argv) {
   app.add_flag("--json", cli.json, "Print the summary as one JSON object");
   app.add_flag("--no-progress", cli.no_progress, "No progress bar even on a terminal");
   app.add_flag("--print-config", cli.print_config, "Print the effective configuration as YAML and exit");
+  app.add_flag("--preview", cli.preview, "Publish a preview for evpipe-view on EVPIPE_PREVIEW (lcm.preview)");
+  app.add_option("--preview-hz", cli.preview_hz, "Previews per second (implies --preview; lcm.preview_hz, default 10)")
+      ->check(CLI::Range(0.1, 30.0));
+  app.add_option("--video", cli.video,
+                 "Write the preview of every window to this video (.mp4: MPEG-4 via FFmpeg; .avi: Motion JPEG)");
+  app.add_option("--video-fps", cli.video_fps, "Video frame rate (default: sensor time, 1 / window.hop_us)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--png-every", cli.png_every, "Write every Nth window's preview as PNG (to --png-dir)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--png-dir", cli.png_dir, "Folder for --png-every stills (default: .)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -10,6 +10,7 @@
 #include <map>
 #include <sstream>
 
+#include "evpipe/core/file.hpp"
 #include "evpipe/core/filter_chain.hpp"
 
 namespace evpipe::config {
@@ -158,12 +159,17 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
                      {"init_worker", str(c.pose.init_worker)},
                      {"init_worker_nice", integer(c.pose.init_worker_nice)}});
     } else if (section == "lcm") {
-      apply_section(node, name, section,
-                    {{"enabled", boolean(c.lcm.enabled)},
-                     {"url", str(c.lcm.url)},
-                     {"pose_channel", str(c.lcm.pose_channel)},
-                     {"stats_channel", str(c.lcm.stats_channel)},
-                     {"stats_period_ms", i64(c.lcm.stats_period_ms)}});
+      apply_section(
+          node, name, section,
+          {{"enabled", boolean(c.lcm.enabled)},
+           {"url", str(c.lcm.url)},
+           {"pose_channel", str(c.lcm.pose_channel)},
+           {"stats_channel", str(c.lcm.stats_channel)},
+           {"stats_period_ms", i64(c.lcm.stats_period_ms)},
+           {"preview", boolean(c.lcm.preview)},
+           {"preview_hz", [&](const YAML::Node& n,
+                              const std::string& k) { c.lcm.preview_hz = scalar<double>(n, name, k, "a number"); }},
+           {"preview_channel", str(c.lcm.preview_channel)}});
     } else if (section == "pipeline") {
       apply_section(node, name, section,
                     {{"source_queue_packets", i64(c.pipeline.source_queue_packets)},
@@ -183,11 +189,13 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
 }
 
 RunConfig load_config(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(fmt::format("{}: cannot open the configuration file", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_config(ss.str(), path);
+  std::string text;
+  try {
+    text = read_small_file(path, kMaxConfigBytes, "a run configuration");  // regular files only, never blocks
+  } catch (const FileError& e) {
+    throw ConfigError(e.what());
+  }
+  return parse_config(text, path);
 }
 
 std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params() const {
@@ -257,6 +265,9 @@ void RunConfig::validate() const {
         fmt::format("must be in [0, 19], got {}", pose.init_worker_nice));
   check(!lcm.pose_channel.empty(), "lcm.pose_channel", "must not be empty");
   check(!lcm.stats_channel.empty(), "lcm.stats_channel", "must not be empty");
+  check(lcm.preview_hz >= 0.1 && lcm.preview_hz <= 30, "lcm.preview_hz",
+        fmt::format("must be in [0.1, 30], got {}", lcm.preview_hz));
+  check(!lcm.preview_channel.empty(), "lcm.preview_channel", "must not be empty");
   check(lcm.stats_period_ms >= 10 && lcm.stats_period_ms <= 1000, "lcm.stats_period_ms",
         fmt::format("must be in [10, 1000] (interfaces.md: at least once a second), got {}", lcm.stats_period_ms));
   check(pipeline.source_queue_packets >= 2 && pipeline.source_queue_packets <= 65536, "pipeline.source_queue_packets",
@@ -322,6 +333,9 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "pose_channel" << YAML::Value << lcm.pose_channel;
   out << YAML::Key << "stats_channel" << YAML::Value << lcm.stats_channel;
   out << YAML::Key << "stats_period_ms" << YAML::Value << lcm.stats_period_ms;
+  out << YAML::Key << "preview" << YAML::Value << lcm.preview;
+  out << YAML::Key << "preview_hz" << YAML::Value << lcm.preview_hz;
+  out << YAML::Key << "preview_channel" << YAML::Value << lcm.preview_channel;
   out << YAML::EndMap;
   out << YAML::Key << "pipeline" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "source_queue_packets" << YAML::Value << pipeline.source_queue_packets;

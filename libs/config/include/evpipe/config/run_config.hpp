@@ -53,7 +53,7 @@ struct WindowConfig {
 
 struct DenoiseConfig {
   /// A filter or comma-separated chain by name (`evdenoise --list-filters`); "none" = no denoising.
-  std::string filter = "curvature";
+  std::string filter = "significance";
   /// KEY (or NAME.KEY in a chain) → value, as `evdenoise --set KEY=VALUE`; the filter validates them.
   std::vector<std::pair<std::string, std::string>> params;
   /// Threads one block of the filter is spread over (denoise::Filter::set_parallelism); 0 = auto (the cores the
@@ -92,6 +92,10 @@ struct LcmConfig {
   std::string pose_channel = "EVPIPE_POSE";  ///< channel of the pose messages
   std::string stats_channel = "EVPIPE_STATS";
   std::int64_t stats_period_ms = 1000;  ///< statistics message period
+  /// The preview for people (evpipe-view; preview_t, docs/operations.md "Watching the pipeline"): off by default.
+  bool preview = false;
+  double preview_hz = 10.0;  ///< previews per second when on (0.1-30)
+  std::string preview_channel = "EVPIPE_PREVIEW";
 };
 
 struct PipelineConfig {
@@ -120,6 +124,9 @@ struct RunConfig {
 /// Loads `path` over the defaults. Throws ConfigError (file, key, reason) on unreadable files, syntax errors,
 /// unknown keys, and values of the wrong type or out of range.
 RunConfig load_config(const std::string& path);
+/// The largest run configuration load_config() reads (the shipped ones are ~10 KB): a regular file only (a FIFO,
+/// device or directory is refused without blocking), checked before reading.
+inline constexpr std::uint64_t kMaxConfigBytes = 1 << 20;
 /// Parses YAML text (for tests); `name` is used in messages.
 RunConfig parse_config(const std::string& yaml_text, const std::string& name = "<config>");
 
