@@ -288,6 +288,21 @@ int run(const Cli& cli) {
   spdlog::debug("denoise: {} thread(s)", po.denoise_threads);
   app::AppSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
   std::unique_ptr<app::PreviewWorker> preview;
+  if (!cli.video.empty()) {
+    // Checked again now that the poses CSV and the LCM log exist: the video must not overwrite them either (a log
+    // that did not exist yet passed the first check by name).
+    std::vector<std::string> files = inputs;
+    files.push_back(cfg.pose.poses_out);
+    if (transport::LcmUrl u; publisher && publisher->writes_log() &&
+                             !transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true, &u))
+      files.push_back(u.target);
+    try {
+      check_output_file(cli.video, files);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evpipe: configuration error: --video: %s\n", e.what());
+      return 2;
+    }
+  }
   if (tap) {
     app::PreviewOptions vo;
     vo.hz = cfg.lcm.preview_hz;

@@ -118,6 +118,15 @@ TEST_F(Files, EvpipeOutputsNamingAnInputAreRefusedBeforeTruncating) {
       evpipe("--poses-out " + q(path("p.csv")) + " --lcm-url " + q("file://" + path("p.csv") + "?mode=w"));
   EXPECT_EQ(both.status, 2);
   EXPECT_THAT(both.err, HasSubstr("refusing to overwrite it")) << both.err;
+  // Nor is --video one of the outputs, even when it did not exist before the run (the LCM log's name).
+  const auto video_csv = evpipe("--no-lcm --poses-out " + q(path("csv.mp4")) + " --video " + q(path("csv.mp4")));
+  EXPECT_EQ(video_csv.status, 2);
+  EXPECT_THAT(video_csv.err, HasSubstr("--video: " + path("csv.mp4"))) << video_csv.err;
+  EXPECT_THAT(slurp(path("csv.mp4")), ::testing::StartsWith("t_us,")) << "the poses CSV's header is kept";
+  const auto video_log =
+      evpipe("--lcm-url " + q("file://" + path("log.mp4") + "?mode=w") + " --video " + q(path("log.mp4")));
+  EXPECT_EQ(video_log.status, 2);
+  EXPECT_THAT(video_log.err, HasSubstr("--video: " + path("log.mp4"))) << video_log.err;
 }
 
 // Row 9: a FIFO without a writer as an input blocked open() for ever.
