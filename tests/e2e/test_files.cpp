@@ -92,6 +92,13 @@ TEST_F(Files, EvsimAndEvposeEvalRefuseToOverwriteTheirInputs) {
   EXPECT_NE(e.status, 0);
   EXPECT_THAT(e.err, HasSubstr("refusing to overwrite it")) << e.err;
   EXPECT_EQ(slurp(path("rh.gt.csv")), slurp(source(".gt.csv")));
+  // --errors-out naming the estimate (read before it is written) is refused too, the estimate kept.
+  fs::copy_file(source(".gt.csv"), path("est.csv"));
+  const auto eo =
+      run(kEvposeEval + " " + q(path("est.csv")) + " " + q(path("rh.gt.csv")) + " --errors-out " + q(path("est.csv")));
+  EXPECT_NE(eo.status, 0);
+  EXPECT_THAT(eo.err, HasSubstr("est.csv: is also an input of this program")) << eo.err;
+  EXPECT_EQ(slurp(path("est.csv")), slurp(source(".gt.csv")));
 }
 
 // Row 5: --poses-out (or an LCM log) naming one of evpipe's own inputs truncated it before it was read.
