@@ -264,7 +264,9 @@ int run(const Options& o) {
                                            o.symmetry == "planar-rect" ? std::string() : o.symmetry};
   if (!o.errors_out.empty()) write_errors(o.errors_out, r, inputs);
   if (!o.png.empty()) {  // first: a failure leaves no partial report on stdout
-    evpipe::check_output_file(o.png, inputs);
+    auto files = inputs;
+    files.push_back(o.errors_out);  // an output already written is not overwritten either
+    evpipe::check_output_file(o.png, files);
     evpose_eval::PlotInput in;
     in.truth = truth;
     in.eval = &r;

@@ -99,6 +99,12 @@ TEST_F(Files, EvsimAndEvposeEvalRefuseToOverwriteTheirInputs) {
   EXPECT_NE(eo.status, 0);
   EXPECT_THAT(eo.err, HasSubstr("est.csv: is also an input of this program")) << eo.err;
   EXPECT_EQ(slurp(path("est.csv")), slurp(source(".gt.csv")));
+  // --png naming --errors-out (written just before) likewise.
+  const auto ep = run(kEvposeEval + " " + q(path("est.csv")) + " " + q(path("rh.gt.csv")) + " --errors-out " +
+                      q(path("err.csv")) + " --png " + q(path("err.csv")));
+  EXPECT_NE(ep.status, 0);
+  EXPECT_THAT(ep.err, HasSubstr("err.csv: is also an input of this program")) << ep.err;
+  EXPECT_THAT(slurp(path("err.csv")), ::testing::StartsWith("t_us,status,")) << ep.err;
 }
 
 // Row 5: --poses-out (or an LCM log) naming one of evpipe's own inputs truncated it before it was read.
