@@ -145,6 +145,11 @@ int run(const Cli& cli) {
     cfg.validate();
     if (!cfg.pose.ground_truth.empty() && cfg.source.replay.empty())
       throw config::ConfigError("pose.ground_truth (--ground-truth): only for a replay (--replay)");
+    // preview_t on the pose or statistics channel would reach the controller's subscription as another type.
+    if (cfg.lcm.preview &&
+        (cfg.lcm.preview_channel == cfg.lcm.pose_channel || cfg.lcm.preview_channel == cfg.lcm.stats_channel))
+      throw config::ConfigError(
+          fmt::format("lcm.preview_channel: '{}' is also the pose or statistics channel", cfg.lcm.preview_channel));
   } catch (const config::ConfigError& e) {
     std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
     return 2;

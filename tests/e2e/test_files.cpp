@@ -229,3 +229,11 @@ TEST_F(Files, CutAedatHeaderIsAnErrorNamingTheFile) {
   EXPECT_EQ(c.status, 1);
   EXPECT_THAT(c.err, HasSubstr("cut after 5 byte(s)")) << c.err;
 }
+
+// preview_t on the pose (or statistics) channel would reach the controller's pose subscription as another type.
+TEST_F(Files, PreviewChannelMayNotBeThePoseChannel) {
+  std::ofstream(path("evpipe.yaml")) << "lcm:\n  preview: true\n  preview_channel: EVPIPE_POSE\n";
+  const auto r = evpipe("--no-lcm");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("lcm.preview_channel: 'EVPIPE_POSE' is also the pose or statistics channel")) << r.err;
+}
