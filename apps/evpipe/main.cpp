@@ -228,7 +228,9 @@ int run(const Cli& cli) {
     }
   }
   app::RawTap* tap = nullptr;
+  EventSource* tapped = nullptr;  // the source under the tap: the pipeline still sees the camera / pacer in it
   if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
+    tapped = source.get();
     auto t = std::make_unique<app::RawTap>(std::move(source));
     tap = t.get();
     source = std::move(t);
@@ -280,6 +282,7 @@ int run(const Cli& cli) {
 
   pipeline::PipelineOptions po;
   po.mode = live ? pipeline::Mode::live : pipeline::Mode::replay;
+  po.wrapped_source = tapped;
   po.window_us = cfg.window.length_us;
   po.hop_us = cfg.window.hop_us;
   po.batch_queue_capacity = static_cast<std::size_t>(cfg.pipeline.source_queue_packets);
