@@ -7,7 +7,7 @@
 // every preview received.
 //
 // Exit status: 0 done, 1 LCM error, no preview within --timeout, or only messages of another type on the channel,
-// 2 usage error (also no display for a window).
+// 2 usage error (also no display for a window, an invalid --lcm-url).
 
 #include <fmt/format.h>
 #include <netdb.h>
