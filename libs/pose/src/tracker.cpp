@@ -442,8 +442,9 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
       const ProjectedSegment& s = segs[assoc[j].segment];
       const Eigen::Vector2d d = s.b_n - s.a_n;
       const double len_px = d.norm() * f;
-      const auto n_cells =
-          static_cast<std::size_t>(std::ceil(std::max(len_px, 1.0) / std::max(o.covariance_cell_px, 0.5)));
+      const auto n_cells = o.covariance_cell_px > 0.0
+                               ? static_cast<std::size_t>(std::ceil(std::max(len_px, 1.0) / o.covariance_cell_px))
+                               : std::size_t{1};
       auto& occ = occupied[assoc[j].segment];
       if (occ.size() != n_cells) occ.assign(n_cells, false);
       const double t = std::clamp((assoc[j].p_n - s.a_n).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);

@@ -206,7 +206,8 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
     if (supported[j]) ++s.supported;
   }
   // What support a true segment can show. The events above noise per cell are measured on the window: the upper
-  // quartile over the segments of (events above noise) per cell, or with a motion hint per pixel swept across
+  // median over the segments of (events above noise) per cell (a pose most of whose segments show nothing expects
+  // nothing and is refused as unverifiable), or with a motion hint per pixel swept across
   // the segment (contrast / threshold; a segment moving along itself gives none). A segment's expected share of
   // supported cells is then P(Poisson(noise + expected excess) >= threshold); a segment is required when that is
   // at least 1/2, and supported when it shows at least min_segment_coverage x its expected share.
@@ -225,7 +226,7 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
   double rate = 0.0;
   if (!rates.empty()) {
     std::sort(rates.begin(), rates.end());
-    rate = rates[std::min(rates.size() - 1, (3 * rates.size()) / 4)];
+    rate = rates[rates.size() / 2];
   }
   const auto chance_supported = [&](double excess) {
     const double mean = res.noise_per_cell + excess;  // P(Poisson(mean) >= threshold)
@@ -247,7 +248,11 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
     s.required = expected_share >= 0.5 && (motion_scale <= 0.0 || s.normal_motion_px >= o.min_normal_motion_px);
     ++res.segments_judged;
     const double expected_cells = expected_share * static_cast<double>(s.cells);
-    const bool seg_ok = static_cast<double>(s.supported) >= o.min_segment_coverage * expected_cells;
+    // ... and more supported cells than noise alone gives (binomial, false_alarm per cell, ~3 sigma).
+    const double n = static_cast<double>(s.cells);
+    const double by_noise = n * o.false_alarm + 3.0 * std::sqrt(n * o.false_alarm * (1.0 - o.false_alarm));
+    const bool seg_ok = static_cast<double>(s.supported) >= o.min_segment_coverage * expected_cells &&
+                        static_cast<double>(s.supported) > by_noise;
     if (s.required) {
       ++res.segments_required;
       res.cells_required += s.cells;
@@ -255,10 +260,12 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
       res.cells_expected += expected_cells;
       if (seg_ok) ++res.segments_supported;
     }
-    // Observability from every supported cell (of any segment: support where none was expected is still
-    // evidence), one measurement of the edge's position across the cell each.
+    // Observability from the supported cells of the required segments that are supported along their length
+    // (support elsewhere may be clutter the pose happens to cross), one measurement of the edge's position
+    // across the cell each.
+    const bool counts_for_pose = s.required && seg_ok;
     for (std::size_t k = 0; k < s.cells; ++k, ++j) {
-      if (!supported[j]) continue;
+      if (!supported[j] || !counts_for_pose) continue;
       const Cell& c = cells[j];
       const Eigen::Vector3d Q = R * c.P_m, P = Q + T.t_cam_model_m;
       Eigen::Matrix<double, 2, 3> Jp;
@@ -300,7 +307,9 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
   if (res.segments_judged == 0) {
     res.reason = "verification: no model segment in view";
   } else if (res.segments_required == 0) {
-    res.reason = "verification: no segment moves across itself (nothing can be verified)";
+    res.reason = motion_scale > 0.0
+                     ? "verification: no segment moves across itself enough to show support (nothing to verify)"
+                     : "verification: no segment shows support above the noise (nothing to verify)";
   } else if (static_cast<double>(res.segments_supported) <
              o.min_segment_share * static_cast<double>(res.segments_required)) {
     res.reason = fmt::format("verification: {} of {} segments supported along their length (need {:.0f} %)",

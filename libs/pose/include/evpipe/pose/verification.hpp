@@ -37,9 +37,11 @@ struct VerifyOptions {
   double side_gap_px = 0.5;    ///< the side strips start this far beyond the band ...
   double side_width_px = 1.5;  ///< ... and are this wide, one on each side
   double side_ratio = 1.5;     ///< a supported band's event density exceeds each side strip's by this factor
-  double false_alarm = 1e-3;   ///< P(noise alone reaches a cell's support threshold)
-  double border_px = 2.0;      ///< cells closer than this to the image border are not judged
-  std::size_t min_cells = 3;   ///< a segment with fewer cells in view is not judged
+  /// P(noise alone reaches a cell's support threshold); a segment must also hold more supported cells than
+  /// noise alone gives at this rate (binomial, 3 sigma).
+  double false_alarm = 0.05;
+  double border_px = 2.0;     ///< cells closer than this to the image border are not judged
+  std::size_t min_cells = 3;  ///< a segment with fewer cells in view is not judged
   /// With a motion hint a segment is required when it moves at least this far across itself over the window and
   /// its expected events above noise per cell (the window's measured events per pixel swept) are at least twice
   /// the support threshold.
@@ -47,7 +49,7 @@ struct VerifyOptions {
   /// A required segment is supported when it shows this share of the supported cells a true edge with its
   /// motion would show (Poisson, the window's measured events per pixel swept).
   double min_segment_coverage = 0.5;
-  double min_segment_share = 0.6;  ///< this share of the required segments must be supported ...
+  double min_segment_share = 0.5;  ///< this share of the required segments must be supported ...
   double min_coverage = 0.5;       ///< ... and the model this share of its expected supported cells
   /// Observability: the pose from one measurement per supported cell (cell_sigma_px each, the position of an edge
   /// in a cell) must have 1-sigma errors below these (3 sigma inside the 20 mm / 2 deg of a "wrong" pose).
