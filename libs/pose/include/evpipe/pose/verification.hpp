@@ -52,8 +52,9 @@ struct VerifyOptions {
   double min_segment_share = 0.35;  ///< this share of the required segments must be supported ...
   double min_coverage = 0.35;       ///< ... and the model this share of its expected supported cells
   /// Observability: the pose from one measurement per supported cell (cell_sigma_px each, the position of an edge
-  /// in a cell) must have 1-sigma errors below these (3 sigma inside the 20 mm / 2 deg of a "wrong" pose).
-  /// The bounds are the wrong-pose threshold itself: support that leaves 1 sigma above it fixes nothing.
+  /// in a cell) must have 1-sigma errors below these.
+  /// The wrong-pose threshold itself (20 mm / 2 deg) at 1 sigma: support that leaves more fixes nothing. (2 or
+  /// 3 sigma inside it refuses most windows of the planar target beyond 0.8 m, whose tilt is weakly observable.)
   double cell_sigma_px = 1.0;
   double max_rotation_std_deg = 2.0;
   double max_translation_std_m = 0.02;
