@@ -347,7 +347,10 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
   PoseEstimate out;
   const camera::Pose predicted = predict(state, t_end_us);
   const EventSpan events = tracking_events(window, t_end_us, history);
-  const TrackUpdate u = track_window(events, map_, model_, predicted, options_.track);
+  // Verification hook (pose-verify): the last tracked pose gives the motion each segment's support depends on.
+  const std::optional<MotionHint> motion =
+      state.last ? std::optional<MotionHint>(MotionHint{*state.last, t_end_us}) : std::nullopt;
+  const TrackUpdate u = track_window(events, map_, model_, predicted, options_.track, motion);
   out.t_us = t_end_us;
   out.window_events = events.size();
   // A target cannot jump: an update far from the prediction has locked onto other edges (a wrong local

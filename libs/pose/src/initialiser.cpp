@@ -2,6 +2,7 @@
 
 #include "evpipe/pose/opnl.hpp"
 #include "evpipe/pose/types.hpp"
+#include "evpipe/pose/verification.hpp"
 
 #include <fmt/format.h>
 
@@ -207,14 +208,23 @@ struct Scored {
   camera::Pose T;
   std::size_t explained{0};
   std::size_t correspondences{0};
+  bool verified{false};            // set for the refined candidates
+  std::size_t supported_cells{0};  // of the verification
 };
 
 class Search {
  public:
   Search(const std::vector<Detected>& det, const camera::CameraModel& cam, const camera::LineModel& model,
          const std::optional<camera::PosePrior>& prior, const InitialiserOptions& o, SupportCounter& support,
-         double line_support)
-      : det_(det), cam_(cam), model_(model), prior_(prior), o_(o), support_(support), line_support_(line_support) {}
+         double line_support, EventSpan events)
+      : det_(det),
+        cam_(cam),
+        model_(model),
+        prior_(prior),
+        o_(o),
+        support_(support),
+        line_support_(line_support),
+        events_(events) {}
 
   // Phase A: the 2D alignments a pseudo-prior offers.
   void align(const camera::Pose& pseudo) {
@@ -379,7 +389,14 @@ class Search {
         cur = {r.T_cam_model, ex, inl.size()};
       }
       if (cur.correspondences == 0) cur.correspondences = inliers(cur.T).size();
-      if (!best || cur.explained > best->explained) best = cur;
+      // Ranked by the verification first (verification.hpp: support along every segment, beating the scene's
+      // other structure), then by explained events: events near the model alone favour a pose that lays its lines
+      // over any strong structure (a monitor's border 1.45x a board: every outer segment on an edge, the inner ones
+      // over the board's own grid).
+      const VerifyResult v = verify_pose(events_, cam_, model_, cur.T, o_.verification);
+      cur.verified = v.ok;
+      cur.supported_cells = v.cells_supported;
+      if (!best || better(cur, *best)) best = cur;
     }
     return best;
   }
@@ -507,8 +524,15 @@ class Search {
   const camera::LineModel& model_;
   const std::optional<camera::PosePrior>& prior_;
   const InitialiserOptions& o_;
+  static bool better(const Scored& a, const Scored& b) {
+    if (a.verified != b.verified) return a.verified;
+    if (a.verified && a.supported_cells != b.supported_cells) return a.supported_cells > b.supported_cells;
+    return a.explained > b.explained;
+  }
+
   SupportCounter& support_;
   double line_support_;
+  EventSpan events_;
   std::vector<Alignment> aligns_;                  // the current start's alignments
   std::vector<std::vector<Alignment>> per_start_;  // each start's best, best first
 };
@@ -622,7 +646,7 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
   }
 
   SupportCounter support(events, camera, options.support_band_px);
-  Search search(det, camera, model, prior, options, support, line_support);
+  Search search(det, camera, model, prior, options, support, line_support, events);
   std::vector<camera::Pose> starts;
   if (prior) {
     // The prior and its tilts about the camera's x and y axes (through the model's centre): the 2D alignment

@@ -435,7 +435,27 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
     // sigma² (J^T W J)^-1, from the eigen-decomposition of the scaled matrix (scaled back).
     const Matrix6d Hs_inv =
         es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
-    up.covariance = sigma_cov * sigma_cov * (scale.asDiagonal() * Hs_inv * scale.asDiagonal());
+    // One measurement per occupied cell along the segments, not per event (tracker.hpp, covariance_cell_px).
+    std::vector<std::vector<bool>> occupied(segs.size());
+    for (std::size_t j = 0; j < r.size(); ++j) {
+      if (w[j] == 0.0) continue;
+      const ProjectedSegment& s = segs[assoc[j].segment];
+      const Eigen::Vector2d d = s.b_n - s.a_n;
+      const double len_px = d.norm() * f;
+      const auto n_cells = o.covariance_cell_px > 0.0
+                               ? static_cast<std::size_t>(std::ceil(std::max(len_px, 1.0) / o.covariance_cell_px))
+                               : std::size_t{1};
+      auto& occ = occupied[assoc[j].segment];
+      if (occ.size() != n_cells) occ.assign(n_cells, false);
+      const double t = std::clamp((assoc[j].p_n - s.a_n).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
+      occ[std::min(n_cells - 1, static_cast<std::size_t>(t * static_cast<double>(n_cells)))] = true;
+    }
+    for (const auto& occ : occupied)
+      up.covariance_cells += static_cast<std::size_t>(std::count(occ.begin(), occ.end(), true));
+    const double per_cell =
+        up.covariance_cells > 0 ? static_cast<double>(up.inliers) / static_cast<double>(up.covariance_cells) : 1.0;
+    up.covariance =
+        std::max(per_cell, 1.0) * sigma_cov * sigma_cov * (scale.asDiagonal() * Hs_inv * scale.asDiagonal());
     up.covariance = 0.5 * (up.covariance + up.covariance.transpose());
     up.covariance_known = up.covariance.allFinite();
     if (!up.covariance_known) up.covariance.setZero();
@@ -503,7 +523,8 @@ bool better(const TrackUpdate& a, const TrackUpdate& b) {
 }  // namespace
 
 TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera::LineModel& model,
-                         const camera::Pose& T_predicted, const TrackerOptions& options) {
+                         const camera::Pose& T_predicted, const TrackerOptions& options,
+                         const std::optional<MotionHint>& motion) {
   const TrackerOptions& o = options;
   TrackUpdate up;
   up.T_cam_model = T_predicted;
@@ -540,12 +561,20 @@ TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera
       for (const double sign : {1.0, -1.0}) try_start(tilted(T_predicted, model, sign * o.recovery_tilt_deg, axis));
     }
   }
+  if (up.healthy && o.verify) {
+    up.verification = verify_pose(events, map.camera(), model, up.T_cam_model, o.verification, motion);
+    if (!up.verification.ok) {
+      up.healthy = false;
+      up.reason = up.verification.reason;
+    }
+  }
   return up;
 }
 
 TrackUpdate track_window(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
-                         const camera::Pose& T_predicted, const TrackerOptions& options) {
-  return track_window(events, cached_map(camera), model, T_predicted, options);
+                         const camera::Pose& T_predicted, const TrackerOptions& options,
+                         const std::optional<MotionHint>& motion) {
+  return track_window(events, cached_map(camera), model, T_predicted, options, motion);
 }
 
 }  // namespace evpipe::pose

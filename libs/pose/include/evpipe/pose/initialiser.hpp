@@ -8,6 +8,7 @@
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/core/event.hpp"
 #include "evpipe/pose/line_detector.hpp"
+#include "evpipe/pose/verification.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -83,6 +84,9 @@ struct InitialiserOptions {
   double min_explained_share = 0.5;
   /// Without a prior: view directions sampled (Fibonacci sphere) as pseudo-priors.
   int view_samples = 48;
+  /// The refined candidates are ranked by verify_pose() with these options (verified first, then supported
+  /// cells, then explained events).
+  VerifyOptions verification;
 };
 
 struct InitResult {

@@ -1,0 +1,333 @@
+// Pose verification (verification.hpp): per-cell support of the projected model against the window's noise
+// density and the strips beside each cell, required where the motion makes edges fire, and the 6-DoF
+// observability of what is supported.
+
+#include "evpipe/pose/verification.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace evpipe::pose {
+
+namespace {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+constexpr double kNear_m = 1e-3;
+
+struct Counts {
+  double on{0}, left{0}, right{0};
+  double on_px{0}, left_px{0}, right_px{0};
+};
+
+// Per-pixel event counts of the window.
+class CountImage {
+ public:
+  CountImage(EventSpan events, int width, int height)
+      : w_(width), h_(height), counts_(static_cast<std::size_t>(width) * height, 0), band_(counts_.size(), 0) {
+    for (const Event& e : events) {
+      if (e.x < w_ && e.y < h_) {
+        ++counts_[idx(e.x, e.y)];
+        ++total_;
+      }
+    }
+  }
+  [[nodiscard]] std::size_t idx(int x, int y) const { return static_cast<std::size_t>(y) * w_ + x; }
+
+  // Events in the band and the side strips of the cell p -> q (pixel centres at integer coordinates).
+  Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o) {
+    Counts c;
+    const Eigen::Vector2d d = q - p;
+    const double len = d.norm();
+    if (!(len > 1e-9)) return c;
+    const Eigen::Vector2d u = d / len;
+    const double side_in = o.band_px + o.side_gap_px, side_out = side_in + o.side_width_px;
+    const int xa = std::max(0, static_cast<int>(std::floor(std::min(p.x(), q.x()) - side_out)));
+    const int xb = std::min(w_ - 1, static_cast<int>(std::ceil(std::max(p.x(), q.x()) + side_out)));
+    const int ya = std::max(0, static_cast<int>(std::floor(std::min(p.y(), q.y()) - side_out)));
+    const int yb = std::min(h_ - 1, static_cast<int>(std::ceil(std::max(p.y(), q.y()) + side_out)));
+    for (int y = ya; y <= yb; ++y) {
+      for (int x = xa; x <= xb; ++x) {
+        const Eigen::Vector2d r = Eigen::Vector2d(x, y) - p;
+        const double t = r.dot(u);
+        if (t < 0.0 || t >= len) continue;  // the cell's own length: neighbouring cells do not share pixels
+        const double s = u.x() * r.y() - u.y() * r.x();
+        const double a = std::abs(s);
+        const double n = counts_[idx(x, y)];
+        if (a <= o.band_px) {
+          c.on += n;
+          c.on_px += 1;
+          band_[idx(x, y)] = 1;
+        } else if (a > side_in && a <= side_out) {
+          (s < 0 ? c.left : c.right) += n;
+          (s < 0 ? c.left_px : c.right_px) += 1;
+        }
+      }
+    }
+    return c;
+  }
+
+  // Events per pixel away from every band marked so far (noise and the scene's other structure).
+  [[nodiscard]] double background_density() const {
+    double events = 0, pixels = 0;
+    for (std::size_t i = 0; i < counts_.size(); ++i) {
+      if (band_[i]) continue;
+      events += counts_[i];
+      pixels += 1;
+    }
+    return pixels > 0 ? events / pixels : 0.0;
+  }
+
+ private:
+  int w_, h_;
+  std::vector<std::uint32_t> counts_;
+  std::vector<std::uint8_t> band_;
+  std::size_t total_{0};
+};
+
+struct Cell {
+  std::size_t segment{0};
+  Eigen::Vector3d P_m{Eigen::Vector3d::Zero()};   // model point at the cell's middle
+  Eigen::Vector2d n_px{Eigen::Vector2d::Zero()};  // unit image normal of the cell
+  Counts counts;
+  double normal_motion_px{0.0};
+};
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
+}  // namespace
+
+int poisson_threshold(double mean, double false_alarm) {
+  if (!(mean > 0.0)) return 1;
+  // P(X >= k) = 1 - sum_{i<k} p_i; stop at the first k where it is <= false_alarm.
+  double p = std::exp(-mean), cdf = 0.0;
+  for (int k = 1; k < 100000; ++k) {
+    cdf += p;  // P(X <= k-1)
+    if (1.0 - cdf <= false_alarm) return k;
+    p *= mean / k;
+  }
+  return 100000;
+}
+
+VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                         const camera::Pose& T, const VerifyOptions& o, const std::optional<MotionHint>& motion) {
+  VerifyResult res;
+  if (!T.t_cam_model_m.allFinite() || !T.q_cam_model.coeffs().allFinite()) {
+    res.reason = "pose not finite";
+    return res;
+  }
+  CountImage img(events, camera.width, camera.height);
+  // Displacement scale: the hint's motion stretched to the window's span.
+  double motion_scale = 0.0;
+  if (motion && !events.empty() && motion->t_us != motion->before.t_us) {
+    const double span = static_cast<double>(events.back().t_us - events.front().t_us);
+    motion_scale = span / static_cast<double>(motion->t_us - motion->before.t_us);
+  }
+  const auto inside = [&](const Eigen::Vector2d& p) {
+    return p.x() >= o.border_px && p.y() >= o.border_px && p.x() <= camera.width - 1 - o.border_px &&
+           p.y() <= camera.height - 1 - o.border_px;
+  };
+  std::vector<Cell> cells;
+  for (std::size_t i = 0; i < model.segments_m.size(); ++i) {
+    const Eigen::Vector3d A = model.segments_m[i].a_m, B = model.segments_m[i].b_m;
+    const Eigen::Vector3d Ac = T.apply(A), Bc = T.apply(B);
+    if (!(Ac.z() > kNear_m) && !(Bc.z() > kNear_m)) continue;
+    // Rough projected length (pinhole) for the number of cells; only pieces in front and inside are kept.
+    const double f = 0.5 * (camera.fx + camera.fy);
+    const double za = std::max(Ac.z(), kNear_m), zb = std::max(Bc.z(), kNear_m);
+    const double len_px = f * (Ac.head<2>() / za - Bc.head<2>() / zb).norm();
+    if (!std::isfinite(len_px)) continue;
+    const int n = std::clamp(static_cast<int>(std::ceil(len_px / std::max(o.cell_px, 0.5))), 1, 2000);
+    SegmentSupport seg;
+    seg.model_index = i;
+    std::vector<Cell> mine;
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Vector3d Pa = A + (B - A) * (static_cast<double>(k) / n);
+      const Eigen::Vector3d Pb = A + (B - A) * (static_cast<double>(k + 1) / n);
+      const Eigen::Vector3d Pc = T.apply(Pa), Qc = T.apply(Pb);
+      if (!(Pc.z() > kNear_m) || !(Qc.z() > kNear_m)) continue;
+      const auto p = camera.project(Pc), q = camera.project(Qc);
+      if (!p || !q || !inside(*p) || !inside(*q)) continue;
+      Cell c;
+      c.segment = i;
+      c.P_m = 0.5 * (Pa + Pb);
+      const Eigen::Vector2d d = *q - *p;
+      if (!(d.norm() > 1e-9)) continue;
+      c.n_px = Eigen::Vector2d(-d.y(), d.x()).normalized();
+      c.counts = img.cell(*p, *q, o);
+      if (motion_scale > 0.0) {
+        const auto m0 = camera.project(motion->before.pose.apply(c.P_m));
+        const auto m1 = camera.project(T.apply(c.P_m));
+        if (m0 && m1) c.normal_motion_px = std::abs((*m1 - *m0).dot(c.n_px)) * motion_scale;
+      }
+      mine.push_back(c);
+    }
+    if (mine.size() < o.min_cells) continue;
+    cells.insert(cells.end(), mine.begin(), mine.end());
+  }
+  // The noise a band can hold: the window's density away from the model, times a band's area.
+  const double density = img.background_density();
+  double band_px_area = 0.0;
+  for (const Cell& c : cells) band_px_area += c.counts.on_px;
+  band_px_area = cells.empty() ? 0.0 : band_px_area / static_cast<double>(cells.size());
+  res.noise_per_cell = density * band_px_area;
+  res.support_threshold = poisson_threshold(res.noise_per_cell, o.false_alarm);
+
+  // Per segment.
+  std::vector<SegmentSupport> segs;
+  std::vector<bool> supported(cells.size(), false);
+  for (std::size_t j = 0; j < cells.size(); ++j) {
+    const Cell& c = cells[j];
+    if (segs.empty() || segs.back().model_index != c.segment) {
+      SegmentSupport s;
+      s.model_index = c.segment;
+      segs.push_back(s);
+    }
+    SegmentSupport& s = segs.back();
+    ++s.cells;
+    s.normal_motion_px += c.normal_motion_px;
+    const Counts& k = c.counts;
+    const double on_d = k.on_px > 0 ? k.on / k.on_px : 0.0;
+    const double left_d = k.left_px > 0 ? k.left / k.left_px : 0.0;
+    const double right_d = k.right_px > 0 ? k.right / k.right_px : 0.0;
+    supported[j] = k.on >= res.support_threshold && on_d > o.side_ratio * left_d && on_d > o.side_ratio * right_d;
+    if (supported[j]) ++s.supported;
+  }
+  // What support a true segment can show. The events above noise per cell are measured on the window: the upper
+  // median over the segments of (events above noise) per cell (a pose most of whose segments show nothing expects
+  // nothing and is refused as unverifiable), or with a motion hint per pixel swept across
+  // the segment (contrast / threshold; a segment moving along itself gives none). A segment's expected share of
+  // supported cells is then P(Poisson(noise + expected excess) >= threshold); a segment is required when that is
+  // at least 1/2, and supported when it shows at least min_segment_coverage x its expected share.
+  std::vector<double> rates;
+  {
+    std::size_t a = 0;
+    for (const SegmentSupport& s : segs) {
+      double excess = 0.0, swept = 0.0;
+      for (std::size_t k = 0; k < s.cells; ++k, ++a) {
+        excess += cells[a].counts.on - res.noise_per_cell;
+        swept += motion_scale > 0.0 ? o.cell_px * cells[a].normal_motion_px : 1.0;
+      }
+      if (swept > 0.0) rates.push_back(std::max(excess, 0.0) / swept);
+    }
+  }
+  double rate = 0.0;
+  if (!rates.empty()) {
+    std::sort(rates.begin(), rates.end());
+    rate = rates[rates.size() / 2];
+  }
+  const auto chance_supported = [&](double excess) {
+    const double mean = res.noise_per_cell + excess;  // P(Poisson(mean) >= threshold)
+    double p = std::exp(-mean), cdf = 0.0;
+    for (int k = 0; k < res.support_threshold; ++k) {
+      cdf += p;
+      p *= mean / (k + 1);
+    }
+    return std::clamp(1.0 - cdf, 0.0, 1.0);
+  };
+  Matrix6d H = Matrix6d::Zero();
+  const double f = 0.5 * (camera.fx + camera.fy);
+  const double sigma_n = o.cell_sigma_px / f;
+  const Eigen::Matrix3d R = T.rotation();
+  std::size_t j = 0;
+  for (SegmentSupport& s : segs) {
+    s.normal_motion_px /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
+    const double expected_share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * s.normal_motion_px : rate);
+    s.required = expected_share >= 0.5 && (motion_scale <= 0.0 || s.normal_motion_px >= o.min_normal_motion_px);
+    ++res.segments_judged;
+    const double expected_cells = expected_share * static_cast<double>(s.cells);
+    // ... and more supported cells than noise alone gives (binomial, false_alarm per cell, ~3 sigma).
+    const double n = static_cast<double>(s.cells);
+    const double by_noise = n * o.false_alarm + 3.0 * std::sqrt(n * o.false_alarm * (1.0 - o.false_alarm));
+    const bool seg_ok = static_cast<double>(s.supported) >= o.min_segment_coverage * expected_cells &&
+                        static_cast<double>(s.supported) > by_noise;
+    if (s.required) {
+      ++res.segments_required;
+      res.cells_required += s.cells;
+      res.cells_supported += s.supported;
+      res.cells_expected += expected_cells;
+      if (seg_ok) ++res.segments_supported;
+    }
+    // Observability from the supported cells of the required segments that are supported along their length
+    // (support elsewhere may be clutter the pose happens to cross), one measurement of the edge's position
+    // across the cell each.
+    const bool counts_for_pose = s.required && seg_ok;
+    for (std::size_t k = 0; k < s.cells; ++k, ++j) {
+      if (!supported[j] || !counts_for_pose) continue;
+      const Cell& c = cells[j];
+      const Eigen::Vector3d Q = R * c.P_m, P = Q + T.t_cam_model_m;
+      Eigen::Matrix<double, 2, 3> Jp;
+      Jp << 1.0 / P.z(), 0.0, -P.x() / (P.z() * P.z()), 0.0, 1.0 / P.z(), -P.y() / (P.z() * P.z());
+      Eigen::Matrix<double, 3, 6> dP;
+      dP.leftCols<3>() = -skew(Q);
+      dP.rightCols<3>() = Eigen::Matrix3d::Identity();
+      // The cell's normal in normalised coordinates ~ the pixel normal (fx ~ fy; distortion is local).
+      const Vector6d g = (c.n_px.transpose() * Jp * dP).transpose();
+      H.noalias() += g * g.transpose() / (sigma_n * sigma_n);
+    }
+  }
+  res.segments = std::move(segs);
+  res.coverage =
+      res.cells_required > 0 ? static_cast<double>(res.cells_supported) / static_cast<double>(res.cells_required) : 0.0;
+  const double relative =
+      res.cells_expected > 0.0 ? static_cast<double>(res.cells_supported) / res.cells_expected : 0.0;
+  // Covariance of the pose from the supported cells (depth-scaled eigen-decomposition, as the tracker's).
+  res.rotation_std_deg = std::numeric_limits<double>::infinity();
+  res.translation_std_m = std::numeric_limits<double>::infinity();
+  {
+    const double depth = std::max(T.t_cam_model_m.norm(), 1e-3);
+    Vector6d scale;
+    scale << 1.0, 1.0, 1.0, depth, depth, depth;
+    const Matrix6d Hs = scale.asDiagonal() * H * scale.asDiagonal();
+    const Eigen::SelfAdjointEigenSolver<Matrix6d> es(Hs);
+    if (es.info() == Eigen::Success && es.eigenvalues()(0) > 1e-12 * std::max(es.eigenvalues()(5), 1e-300)) {
+      const Matrix6d C =
+          scale.asDiagonal() *
+          (es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose()) *
+          scale.asDiagonal();
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> er(C.topLeftCorner<3, 3>());
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> et(C.bottomRightCorner<3, 3>());
+      res.rotation_std_deg = std::sqrt(std::max(er.eigenvalues()(2), 0.0)) * 180.0 / std::numbers::pi;
+      res.translation_std_m = std::sqrt(std::max(et.eigenvalues()(2), 0.0));
+    }
+  }
+
+  if (res.segments_judged == 0) {
+    res.reason = "verification: no model segment in view";
+  } else if (res.segments_required == 0) {
+    res.reason = motion_scale > 0.0
+                     ? "verification: no segment moves across itself enough to show support (nothing to verify)"
+                     : "verification: no segment shows support above the noise (nothing to verify)";
+  } else if (static_cast<double>(res.segments_supported) <
+             o.min_segment_share * static_cast<double>(res.segments_required)) {
+    res.reason = fmt::format("verification: {} of {} segments supported along their length (need {:.0f} %)",
+                             res.segments_supported, res.segments_required, 100.0 * o.min_segment_share);
+  } else if (relative < o.min_coverage) {
+    res.reason = fmt::format(
+        "verification: {:.0f} % of the model's cells supported, {:.0f} % of what its edges should show (need {:.0f} "
+        "%)",
+        100.0 * res.coverage, 100.0 * relative, 100.0 * o.min_coverage);
+  } else if (!(res.rotation_std_deg <= o.max_rotation_std_deg) || !(res.translation_std_m <= o.max_translation_std_m)) {
+    res.reason = fmt::format(
+        "verification: the supported edges do not fix the pose (1 sigma {:.2f} deg / {:.1f} mm; one direction of "
+        "motion or too few edges)",
+        res.rotation_std_deg, 1000.0 * res.translation_std_m);
+  } else {
+    res.ok = true;
+  }
+  return res;
+}
+
+}  // namespace evpipe::pose

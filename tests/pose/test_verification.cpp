@@ -1,0 +1,242 @@
+// Pose verification (issue 21): supported along its length, beating the scene's other structure, 6 DoF fixed.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <numbers>
+#include <optional>
+#include <random>
+
+#include "evpipe/camera/trajectory.hpp"
+#include "evpipe/io/reader.hpp"
+#include "evpipe/pose/estimator.hpp"
+#include "evpipe/pose/tracker.hpp"
+#include "evpipe/pose/verification.hpp"
+#include "evpipe/sim/noise.hpp"
+#include "evpipe/sim/target3d.hpp"
+#include "evpipe_test_data.hpp"
+
+using namespace evpipe;
+
+namespace {
+
+EventSpan slice(const std::vector<Event>& ev, std::int64_t t0, std::int64_t t1) {
+  const auto lo = std::lower_bound(ev.begin(), ev.end(), t0, [](const Event& e, std::int64_t t) { return e.t_us < t; });
+  const auto hi = std::lower_bound(lo, ev.end(), t1, [](const Event& e, std::int64_t t) { return e.t_us < t; });
+  return {lo, hi};
+}
+
+struct Scene {
+  sim::TargetScene scene;
+  std::vector<Event> events;
+  Scene(const std::string& model_file, double distance_m, std::uint64_t seed, std::int64_t duration_us,
+        double noise_hz = 0.0) {
+    const auto cfg = evpipe::testing::source_dir() / "config";
+    scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+    scene.model = camera::load_line_model((cfg / model_file).string());
+    sim::MotionOptions mo;
+    mo.base = sim::facing_pose(scene.model, distance_m, sim::default_view(scene.model));
+    mo.pivot_model_m = sim::bbox_centre(scene.model);
+    std::mt19937_64 rng(seed);
+    scene.trajectory = sim::generate_motion(0, duration_us, mo, rng);
+    events = sim::render_target(scene, 0, duration_us, rng);
+    if (noise_hz > 0.0) {
+      std::mt19937_64 noise_rng(seed + 1);
+      sim::NoiseOptions no;
+      no.rate_hz_per_pixel = noise_hz;
+      const auto noise = sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0,
+                                                  duration_us, no, noise_rng);
+      events.insert(events.end(), noise.begin(), noise.end());
+      std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    }
+  }
+};
+
+}  // namespace
+
+// A 10 x 7 grid board (the real sequence's model): border + 9 + 6 grid lines, 27 mm squares.
+camera::LineModel board(bool with_grid) {
+  camera::LineModel m;
+  m.name = with_grid ? "board" : "outline";
+  const double W = 0.270, H = 0.189, s = 0.027;
+  const auto add = [&](double x0, double y0, double x1, double y1) {
+    m.segments_m.push_back({Eigen::Vector3d(x0, y0, 0), Eigen::Vector3d(x1, y1, 0)});
+  };
+  add(0, 0, W, 0);
+  add(W, 0, W, H);
+  add(W, H, 0, H);
+  add(0, H, 0, 0);
+  if (with_grid) {
+    for (int i = 1; i < 10; ++i) add(i * s, 0, i * s, H);
+    for (int j = 1; j < 7; ++j) add(0, j * s, W, j * s);
+  }
+  return m;
+}
+
+// A board seen from 0.5 m moving on a seeded smooth trajectory; events rendered from `rendered`.
+struct BoardScene {
+  sim::TargetScene scene;
+  std::vector<Event> events;
+  BoardScene(const camera::LineModel& rendered, std::uint64_t seed, double noise_hz) {
+    const auto cfg = evpipe::testing::source_dir() / "config";
+    scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+    scene.model = rendered;
+    sim::MotionOptions mo;
+    mo.base = sim::facing_pose(board(true), 0.5, sim::default_view(board(true)));
+    mo.pivot_model_m = sim::bbox_centre(board(true));
+    std::mt19937_64 rng(seed);
+    scene.trajectory = sim::generate_motion(0, 600'000, mo, rng);
+    events = sim::render_target(scene, 0, 600'000, rng);
+    if (noise_hz > 0.0) {
+      std::mt19937_64 noise_rng(seed + 1);
+      sim::NoiseOptions no;
+      no.rate_hz_per_pixel = noise_hz;
+      const auto noise =
+          sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0, 600'000, no, noise_rng);
+      events.insert(events.end(), noise.begin(), noise.end());
+      std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    }
+  }
+};
+
+// Poisson tail threshold: the smallest k with P(X >= k) <= p.
+TEST(PoseVerify, PoissonThreshold) {
+  EXPECT_EQ(pose::poisson_threshold(0.0, 0.05), 1);
+  // P(Poisson(1) >= 3) = 0.080, >= 4 = 0.019.
+  EXPECT_EQ(pose::poisson_threshold(1.0, 0.05), 4);
+  EXPECT_EQ(pose::poisson_threshold(1.0, 0.1), 3);
+}
+
+// The board rendered whole verifies at its true pose; a decoy with the board's outline but no inner grid lines
+// (a monitor border, a door frame) does not verify as the board, at the same pose, with and without noise.
+TEST(PoseVerify, DecoyOutlineWithoutInnerLinesIsRefused) {
+  for (const double noise_hz : {0.0, 0.5}) {
+    for (const std::uint64_t seed : {11u, 12u, 13u}) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << ", " << noise_hz << " Hz/px");
+      const BoardScene whole(board(true), seed, noise_hz);
+      const BoardScene decoy(board(false), seed, noise_hz);
+      int whole_ok = 0, decoy_ok = 0, windows = 0;
+      for (std::int64_t t = 45'000; t + 15'000 <= 600'000; t += 30'000, ++windows) {
+        const auto T = *camera::interpolate(whole.scene.trajectory, t);
+        const pose::MotionHint hint{
+            camera::StampedPose{t - 30'000, *camera::interpolate(whole.scene.trajectory, t - 30'000)}, t};
+        const auto v = pose::verify_pose(slice(whole.events, t - 15'000, t + 15'000), whole.scene.camera, board(true),
+                                         T, {}, hint);
+        const auto d = pose::verify_pose(slice(decoy.events, t - 15'000, t + 15'000), decoy.scene.camera, board(true),
+                                         T, {}, hint);
+        whole_ok += v.ok ? 1 : 0;
+        decoy_ok += d.ok ? 1 : 0;
+      }
+      EXPECT_EQ(decoy_ok, 0);
+      EXPECT_GE(whole_ok, windows * 8 / 10) << whole_ok << " of " << windows;
+    }
+  }
+}
+
+// Only the horizontal lines fire (a tilt): the vertical ones are not demanded (no motion across them), but the
+// horizontal ones alone do not fix the pose: refused.
+TEST(PoseVerify, OneDirectionOfEdgesIsRefused) {
+  camera::LineModel horizontal = board(true);
+  std::erase_if(horizontal.segments_m,
+                [](const camera::Segment3& s) { return std::abs(s.a_m.y() - s.b_m.y()) > 1e-9; });
+  const BoardScene scene(horizontal, 21, 0.0);
+  for (std::int64_t t = 45'000; t + 15'000 <= 600'000; t += 30'000) {
+    const auto T = *camera::interpolate(scene.scene.trajectory, t);
+    const auto v = pose::verify_pose(slice(scene.events, t - 15'000, t + 15'000), scene.scene.camera, board(true), T);
+    EXPECT_FALSE(v.ok) << "window at " << t;
+  }
+}
+
+// Honest covariance: the normalised estimation error squared of the tracked poses of a seeded scene averages
+// within [0.5, 2] x 6 (the events of one edge are one measurement per cell, not one per event).
+TEST(PoseVerify, CovarianceIsHonestOnASeededScene) {
+  double sum = 0.0;
+  int n = 0;
+  for (const std::uint64_t seed : {20261121u, 31u}) {
+    const Scene s("roadheader-wireframe.yaml", 1.0, seed, 900'000);
+    camera::PosePrior prior;
+    std::mt19937_64 rng(seed + 7);
+    prior.pose = sim::perturb_pose(s.scene.trajectory.front().pose, 0.05, 10.0, rng);
+    prior.position_tolerance_m = 0.3;
+    prior.angle_tolerance_deg = 45.0;
+    pose::PoseEstimator est(s.scene.camera, s.scene.model, prior);
+    for (std::int64_t t0 = 0; t0 + 30'000 <= 900'000; t0 += 30'000) {
+      const auto out = est.process(slice(s.events, t0, t0 + 30'000), t0 + 15'000);
+      if (out.status != pose::TrackStatus::tracking || !out.covariance_known) continue;
+      const auto truth = *camera::interpolate(s.scene.trajectory, t0 + 15'000);
+      Eigen::Matrix<double, 6, 1> e;
+      const Eigen::AngleAxisd dq(truth.q_cam_model * out.T_cam_model.q_cam_model.inverse());
+      e.head<3>() = dq.angle() * dq.axis();
+      e.tail<3>() = truth.t_cam_model_m - out.T_cam_model.t_cam_model_m;
+      const double nees = e.dot(out.covariance.ldlt().solve(e));
+      sum += nees;
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 20);
+  const double mean = sum / n;
+  std::cout << "mean NEES " << mean << " over " << n << " tracked windows (target 3..12)\n";
+  EXPECT_GE(mean, 3.0);
+  EXPECT_LE(mean, 12.0);
+}
+
+// The real DAVIS240 checkerboard recordings (../shared/data/real/davis240-evbench-checkerboard): the board sits
+// inside a monitor whose screen border is a rectangle ~1.45x the board; before the verification the estimator
+// locked onto it and reported tracking 270-500 mm / 24-78 deg off (pan + tilt), and without a prior it accepted
+// wrong poses on both sequences. Now no tracking pose may be more than 20 mm / 2 deg off (scored against each of
+// the board's equivalent poses), with and without the prior.
+double board_error(const camera::Pose& est, const camera::Pose& truth, double& deg) {
+  const Eigen::Vector3d c(0.135, 0.0945, 0.0);
+  double best_mm = 1e300;
+  deg = 1e300;
+  for (int axis = -1; axis < 3; ++axis) {
+    camera::Pose S;  // model -> model symmetry: identity, or 180 deg about an axis through the centre
+    if (axis >= 0) {
+      S.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::Unit(axis)));
+      S.t_cam_model_m = c - S.q_cam_model * c;
+    }
+    const camera::Pose equivalent = truth * S;
+    const double mm = 1000.0 * camera::translation_distance_m(est, equivalent);
+    const double d = camera::rotation_angle_deg(est, equivalent);
+    if (mm + 10.0 * d < best_mm + 10.0 * deg) {
+      best_mm = mm;
+      deg = d;
+    }
+  }
+  return best_mm;
+}
+
+class RealBoard : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
+  const std::string rel = std::string("davis240-evbench-checkerboard/") + GetParam();
+  EVPIPE_REQUIRE_REAL(dir, rel);
+  const auto cam = camera::load_camera(dir + "/camera.yaml");
+  const auto model = camera::load_line_model(dir + "/model.yaml");
+  const auto gt = camera::read_trajectory_csv(dir + "/gt.csv");
+  const auto batch = io::read_all(dir + "/events.aedat4");
+  for (const bool with_prior : {true, false}) {
+    SCOPED_TRACE(with_prior ? "with the prior" : "without a prior");
+    std::optional<camera::PosePrior> prior;
+    if (with_prior) prior = camera::load_prior(dir + "/prior.yaml");
+    pose::PoseEstimator est(cam, model, prior);
+    int tracking = 0, wrong = 0, good = 0, windows = 0;
+    for (std::int64_t t0 = batch.events.front().t_us; t0 + 30'000 <= batch.events.back().t_us; t0 += 30'000) {
+      const auto out = est.process(slice(batch.events, t0, t0 + 30'000), t0 + 15'000);
+      const auto truth = camera::interpolate(gt, t0 + 15'000);
+      if (!truth) continue;
+      ++windows;
+      if (out.status != pose::TrackStatus::tracking) continue;
+      ++tracking;
+      double deg = 0.0;
+      const double mm = board_error(out.T_cam_model, *truth, deg);
+      wrong += (mm > 20.0 || deg > 2.0) ? 1 : 0;
+      good += (mm <= 10.0 && deg <= 1.0) ? 1 : 0;
+    }
+    std::cout << GetParam() << (with_prior ? " with prior: " : " without prior: ") << tracking << " of " << windows
+              << " windows tracking, " << good << " within 10 mm / 1 deg, " << wrong << " wrong\n";
+    EXPECT_EQ(wrong, 0);
+  }
+}
+INSTANTIATE_TEST_SUITE_P(Sequences, RealBoard, ::testing::Values("seq_0001", "seq_0003"));
