@@ -283,3 +283,12 @@ TEST(ConfigKeys, SequenceOrMapKeysAreConfigErrors) {
     EXPECT_EQ(err.rfind("t.yaml: line ", 0), 0U) << err;
   }
 }
+
+// Found by fuzz_config: invalid UTF-8 in a string came back altered from the printed configuration (to_yaml()).
+TEST(ConfigKeys, StringsAreUtf8TextWithoutControlCharacters) {
+  expect_error(std::string("lcm: {stats_channel: EV") + "\xF0\xFF" + " x}\n", "lcm.stats_channel", 1,
+               "UTF-8 text without control");
+  expect_error("pose: {camera: \"a\\x1bb\"}\n", "pose.camera", 1, "UTF-8 text without control");
+  expect_error("denoise: {params: {radius: \"3\\x01\"}}\n", "denoise.params.radius", 1, "UTF-8 text");
+  expect_ok("pose: {camera: \"/srv/kamera/m\\u00e4hdrescher \\u6e2c\\u5b9a.yaml\"}\n");
+}

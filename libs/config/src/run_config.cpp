@@ -1,5 +1,7 @@
 #include "evpipe/config/run_config.hpp"
 
+#include <yaml-cpp/eventhandler.h>
+#include <yaml-cpp/parser.h>
 #include <yaml-cpp/yaml.h>
 
 #include <fmt/format.h>
@@ -177,6 +179,43 @@ std::optional<std::string> check_int(const KeyInfo& k, std::int64_t v) {
   return std::nullopt;
 }
 
+/// Valid UTF-8 with no control character but tab: what a path, URL or channel name holds, and what the effective
+/// configuration prints and loads again unchanged (fuzz_config: invalid UTF-8 came back altered from to_yaml()).
+bool printable_utf8(std::string_view v) {
+  for (std::size_t i = 0; i < v.size();) {
+    const auto c = static_cast<unsigned char>(v[i]);
+    if (c < 0x80) {
+      if ((c < 0x20 && c != '\t') || c == 0x7F) return false;
+      ++i;
+      continue;
+    }
+    std::size_t n = 0;
+    std::uint32_t cp = 0;
+    if ((c & 0xE0U) == 0xC0U) {
+      n = 1;
+      cp = c & 0x1FU;
+    } else if ((c & 0xF0U) == 0xE0U) {
+      n = 2;
+      cp = c & 0x0FU;
+    } else if ((c & 0xF8U) == 0xF0U) {
+      n = 3;
+      cp = c & 0x07U;
+    } else {
+      return false;
+    }
+    if (i + n >= v.size()) return false;
+    for (std::size_t k = 1; k <= n; ++k) {
+      const auto d = static_cast<unsigned char>(v[i + k]);
+      if ((d & 0xC0U) != 0x80U) return false;
+      cp = (cp << 6U) | (d & 0x3FU);
+    }
+    static constexpr std::uint32_t kMinOf[] = {0, 0x80, 0x800, 0x10000};
+    if (cp < kMinOf[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF) || cp < 0xA0) return false;
+    i += n + 1;
+  }
+  return true;
+}
+
 std::optional<std::string> check_str(const KeyInfo& k, const std::string& v) {
   if (k.non_empty && v.empty()) return std::string("must not be empty");
   if (!k.choices.empty()) {
@@ -187,6 +226,7 @@ std::optional<std::string> check_str(const KeyInfo& k, const std::string& v) {
   }
   if (v.find('\0') != std::string::npos) return std::string("must not contain a NUL character");
   if (v.size() > k.max_length) return fmt::format("must be at most {} bytes long, got {}", k.max_length, v.size());
+  if (!printable_utf8(v)) return std::string("must be UTF-8 text without control characters");
   return std::nullopt;
 }
 
@@ -344,11 +384,12 @@ void set_value(const Doc& doc, const Key& k, const YAML::Node& n, const YAML::No
       for_each_entry(
           doc, n, key,
           [&](const std::string& name, const std::string& path, const YAML::Node& value, const YAML::Node& name_node) {
-            if (name.empty() || name.size() > 256)
-              doc.fail(name_node, path, "a parameter name must be 1-256 characters");
+            if (name.empty() || name.size() > 256 || !printable_utf8(name))
+              doc.fail(name_node, path,
+                       "a parameter name must be 1-256 bytes of UTF-8 text without control characters");
             auto text = doc.scalar(value, name_node, path, "a scalar value");
-            if (text.find('\0') != std::string::npos || text.size() > 4096)
-              doc.fail(name_node, path, "must be at most 4096 bytes with no NUL character");
+            if (text.size() > 4096 || !printable_utf8(text))
+              doc.fail(name_node, path, "must be at most 4096 bytes of UTF-8 text without control characters");
             c.denoise.params.emplace_back(name, std::move(text));
           });
       return;
@@ -401,6 +442,47 @@ std::optional<Problem> find_problem(const RunConfig& c) {
   return std::nullopt;
 }
 
+/// Where a second YAML document with content starts, if any (a config is one document: a second one would be
+/// ignored silently). Not YAML::LoadAll: yaml-cpp 0.7's loops for ever on some malformed input (found by
+/// fuzz_config); the parser is asked for at most two documents here.
+class ContentSeen : public YAML::EventHandler {
+ public:
+  std::optional<YAML::Mark> first;
+  void OnDocumentStart(const YAML::Mark& /*mark*/) override {}
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t /*anchor*/) override { see(mark); }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t /*anchor*/) override { see(mark); }
+  void OnScalar(const YAML::Mark& mark, const std::string& /*tag*/, YAML::anchor_t /*anchor*/,
+                const std::string& /*value*/) override {
+    see(mark);
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string& /*tag*/, YAML::anchor_t /*anchor*/,
+                       YAML::EmitterStyle::value /*style*/) override {
+    see(mark);
+  }
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark& mark, const std::string& /*tag*/, YAML::anchor_t /*anchor*/,
+                  YAML::EmitterStyle::value /*style*/) override {
+    see(mark);
+  }
+  void OnMapEnd() override {}
+
+ private:
+  void see(const YAML::Mark& mark) {
+    if (!first) first = mark;
+  }
+};
+
+std::optional<YAML::Mark> second_document(const std::string& text) {
+  std::istringstream in(text);
+  YAML::Parser parser(in);
+  ContentSeen skip;
+  if (!parser.HandleNextDocument(skip)) return std::nullopt;
+  ContentSeen next;
+  if (!parser.HandleNextDocument(next)) return std::nullopt;
+  return next.first;
+}
+
 }  // namespace
 
 const std::vector<KeyInfo>& config_keys() {
@@ -421,9 +503,11 @@ std::optional<double> parse_speed(const std::string& text, const std::string& wh
 
 RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
   const Doc doc{name};
-  std::vector<YAML::Node> docs;
+  YAML::Node root;
+  std::optional<YAML::Mark> second;
   try {
-    docs = YAML::LoadAll(yaml_text);
+    root = YAML::Load(yaml_text);
+    second = second_document(yaml_text);
   } catch (const YAML::ParserException& e) {
     throw ConfigError(
         fmt::format("{}: line {}, column {}: YAML syntax error: {}", name, e.mark.line + 1, e.mark.column + 1, e.msg));
@@ -431,9 +515,9 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
     throw ConfigError(fmt::format("{}: YAML error: {}", name, e.what()));
   }
   RunConfig c;
-  if (docs.size() > 1) doc.fail(docs[1], "<document>", "one YAML document expected, found a second one");
-  if (docs.empty()) return c;
-  const YAML::Node& root = docs.front();
+  if (second)
+    throw ConfigError(
+        fmt::format("{}: line {}: <document>: one YAML document expected, found a second one", name, second->line + 1));
   if (!root || root.IsNull()) return c;
   if (!root.IsMap()) doc.fail(root, "<top level>", fmt::format("expected a map of sections, got {}", node_kind(root)));
 
