@@ -93,3 +93,17 @@ TEST(ConfigCli, EvsimRefusesNonFiniteNumbersAndOverflowingTimes) {
   const auto ok = run(kEvsim + " --scene demo --duration-ms 100 --noise-hz 1 --t0-us 1000000 --out " + q(out));
   EXPECT_EQ(ok.status, 0) << ok.err;
 }
+
+// Also seen: a 640x480 calibration on a 346x260 recording was accepted silently (wrong poses).
+TEST(ConfigCli, CalibrationOfAnotherSensorSizeIsRefused) {
+  const auto cam = write("cam640.yaml",
+                         "camera:\n  width: 640\n  height: 480\n  fx: 500\n  fy: 500\n  cx: 320\n"
+                         "  cy: 240\n  distortion: [0, 0, 0, 0, 0]\n");
+  const auto model = (evpipe::testing::source_dir() / "config/roadheader-wireframe.yaml").string();
+  const auto r = run(kEvpipe + " --replay " + q(kSample) + " --speed max --no-lcm --no-progress --camera " + q(cam) +
+                     " --model " + q(model));
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("pose.camera: " + cam + ": the calibration is for a 640x480 sensor, the recording is 346x260"),
+            std::string::npos)
+      << r.err;
+}
