@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
     evpipe::io::WriterOptions wopt;
     wopt.geometry = reader->info().geometry;
     wopt.compression = compression;
+    wopt.inputs = {in_path};  // `evconvert IN IN` (or a link of IN) is refused before IN is truncated
     auto writer = evpipe::io::open_writer(out_path, out_format, wopt);
     while (auto batch = reader->next()) writer->write(batch->span(), batch->labels);
     writer->close();

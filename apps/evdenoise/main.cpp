@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "evpipe/core/error.hpp"
+#include "evpipe/core/file.hpp"
 #include "evpipe/core/filter_chain.hpp"
 #include "evpipe/denoise/filter.hpp"
 #include "evpipe/denoise/filtered_stream.hpp"
@@ -244,7 +245,9 @@ int run(const Options& o) {
   io::WriterOptions wopt;
   wopt.geometry = geometry;
   wopt.source_name = "evdenoise";
+  wopt.inputs = {o.in};  // OUT is never IN (nor a link of it): refused before anything is truncated
   auto writer = io::open_writer(o.out, out_format, wopt);
+  if (!o.png.empty()) check_output_file(o.png, std::vector<std::string>{o.in, o.out});
 
   metrics::EsrAccumulator esr_in(geometry);
   metrics::EsrAccumulator esr_out(geometry);

@@ -2,12 +2,14 @@
 // from an LCM log file. For operators without a display (lcm-spy is a GUI) and for end-to-end tests.
 // Messages are recognised by their LCM fingerprint, so any channel name works; other types print as
 // {"channel":..., "type":null, "bytes":N}.
-// Exit status: 0 done (count reached, timeout without --count, end of log, SIGINT/SIGTERM), 1 LCM or log error or
-// --count not reached before --timeout, 2 usage error.
+// Exit status: 0 done (count reached, timeout without --count, end of log, SIGINT/SIGTERM), 1 LCM or log error (a
+// --log that is not an LCM log) or --count not reached before --timeout, 2 usage error (an invalid --url).
 
+#include "evpipe/core/file.hpp"
 #include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/lcm_capture.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
+#include "evpipe/transport/lcm_url.hpp"
 #include "evpipe/transport/text.hpp"
 
 #include <fmt/format.h>
@@ -87,6 +89,19 @@ int main(int argc, char** argv) {
     return 0;
   }
 
+  evpipe::transport::LcmUrl parsed;
+  if (const auto why = evpipe::transport::check_lcm_url(evpipe::transport::effective_lcm_url(url), false, &parsed)) {
+    std::fprintf(stderr, "evpipe-lcm-echo: %s\n", why->c_str());
+    return 2;
+  }
+  if (parsed.provider == "file") {  // LCM's file provider would block on a FIFO: a regular file only
+    try {
+      evpipe::check_input_file(parsed.target);
+    } catch (const evpipe::FileError& e) {
+      std::fprintf(stderr, "evpipe-lcm-echo: %s\n", e.what());
+      return 1;
+    }
+  }
   evpipe::transport::LcmCapture cap(url);
   if (!cap.good()) {
     std::fprintf(stderr,

@@ -2,8 +2,13 @@
 // by default) → 30 ms sliding windows → pose (OPnL initialisation, MM tracking) → LCM, one thread per stage
 // (libs/pipeline, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd; a summary at the end.
 //
-// Exit status: 0 success (also after SIGINT/SIGTERM), 1 runtime error (bad file, device), 2 usage or
-// configuration error.
+// Exit status: 0 success (also after SIGINT/SIGTERM/SIGHUP), 1 runtime error (bad file, device, an LCM log of which
+// nothing could be written), 2 usage or configuration error (also an output that is one of the inputs, an invalid
+// LCM URL).
+//
+// Signals (docs/operations.md, "Signals"): TERM, INT and HUP stop the run (drain, summary, exit 0); PIPE is ignored
+// (a closed stdout is a write error, reported on stderr); USR1 logs the status line. The poses CSV and the LCM log
+// are written whole row by row, so a kill loses no row already published.
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -35,6 +40,7 @@
 #include "evpipe/service/notify.hpp"
 #include "evpipe/service/supervisor.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
+#include "evpipe/transport/lcm_url.hpp"
 #include "live.hpp"
 #include "pose_stage.hpp"
 #include "progress.hpp"
@@ -53,6 +59,11 @@ extern "C" void on_signal(int /*sig*/) {
   g_stop.store(true);
   if (auto* p = g_paced.load()) p->stop();
   if (auto* p = g_pipeline.load()) p->request_stop();
+}
+// SIGUSR1: the main loop logs the status line (a handler may not log).
+std::atomic<bool> g_status_request{false};
+extern "C" void on_usr1(int /*sig*/) {
+  g_status_request.store(true);
 }
 
 // The pipeline's stages in StageStats order (docs/architecture.md).
@@ -124,6 +135,15 @@ int run(const Cli& cli) {
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(cfg.log.level));
+  // The program's input files: no output (poses CSV, LCM log) may be one of them (docs/operations.md, "Files").
+  const std::vector<std::string> inputs = {cli.config_path, cfg.source.replay, cfg.pose.camera,
+                                           cfg.pose.model,  cfg.pose.prior,    cfg.pose.ground_truth};
+  if (cfg.lcm.enabled) {
+    if (const auto why = transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true)) {
+      std::fprintf(stderr, "evpipe: configuration error: lcm.url (--lcm-url): %s\n", why->c_str());
+      return 2;
+    }
+  }
   if (cli.print_config) {
     std::cout << cfg.to_yaml() << "\n";
     return 0;
@@ -138,7 +158,7 @@ int run(const Cli& cli) {
   if (!pc.camera.empty() || !pc.model.empty() || !pc.prior.empty() || !pc.poses_out.empty() ||
       !pc.ground_truth.empty()) {
     try {
-      pose_stage = app::PoseStage::create(cfg);
+      pose_stage = app::PoseStage::create(cfg, inputs);
       if (!pc.ground_truth.empty()) truth = camera::read_trajectory_csv(pc.ground_truth);
     } catch (const config::ConfigError& e) {
       std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
@@ -214,7 +234,13 @@ int run(const Cli& cli) {
     lo.url = cfg.lcm.url;
     lo.pose_channel = cfg.lcm.pose_channel;
     lo.stats_channel = cfg.lcm.stats_channel;
+    lo.inputs = inputs;
+    lo.inputs.push_back(cfg.pose.poses_out);
     publisher = std::make_unique<transport::LcmPublisher>(lo);
+    if (!publisher->can_recover()) {  // a log file that cannot be created: nothing to retry
+      std::fprintf(stderr, "evpipe: configuration error: lcm.url (--lcm-url): %s\n", publisher->last_error().c_str());
+      return 2;
+    }
     spdlog::info("LCM: {} on {} (poses) and {} (statistics){}", transport::effective_lcm_url(cfg.lcm.url),
                  lo.pose_channel, lo.stats_channel,
                  publisher->state() == transport::PublisherState::degraded
@@ -250,6 +276,8 @@ int run(const Cli& cli) {
   g_pipeline.store(&pipe);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::signal(SIGHUP, on_signal);  // a closed terminal or session: stop cleanly like TERM
+  std::signal(SIGUSR1, on_usr1);
 
   // systemd: READY once the threads run, STATUS= every second, WATCHDOG=1 only while every stage progresses.
   service::SupervisorOptions so;
@@ -271,6 +299,11 @@ int run(const Cli& cli) {
   supervisor.start();
   service::ready(live ? "reading the camera" : "replaying " + cfg.source.replay);
   while (!pipe.wait_for(std::chrono::milliseconds(100))) {
+    if (g_status_request.exchange(false)) {
+      const auto st = sink.latest_stats();
+      spdlog::info("status: {}",
+                   st ? app::status_line(*st, sink.latest_status(), pose_stage != nullptr) : std::string("starting"));
+    }
     if (progress.active()) {
       const auto st = pipe.stats();
       std::string extra =
@@ -311,6 +344,10 @@ int run(const Cli& cli) {
     summary.lcm_poses = static_cast<std::uint64_t>(c.poses_published);
     summary.lcm_stats = static_cast<std::uint64_t>(c.stats_published);
     summary.lcm_failures = static_cast<std::uint64_t>(c.publish_failures);
+    if (publisher->writes_log() && c.publish_failures > 0) {
+      spdlog::warn("LCM log: {} of {} message(s) could not be written ({})", c.publish_failures,
+                   c.publish_failures + c.poses_published + c.stats_published, publisher->last_error());
+    }
   }
   if (pose_stage) summary.pose = pose_stage->summary();
   if (!truth.empty()) add_ate(summary, truth, sink.valid_poses());
@@ -320,7 +357,15 @@ int run(const Cli& cli) {
     spdlog::error("{}", *err);
     status = 1;
   }
+  if (status == 0 && publisher && publisher->writes_log() && summary.lcm_failures > 0 && summary.lcm_poses == 0 &&
+      summary.lcm_stats == 0) {
+    summary.error = fmt::format("LCM log {}: nothing could be written: {}", summary.lcm_url, publisher->last_error());
+    status = 1;
+  }
   std::cout << (cli.json ? app::format_json(summary) : app::format_text(summary)) << std::flush;
+  if (!std::cout) {  // SIGPIPE is ignored: a closed stdout (`evpipe --json | true`) is a write error, said here
+    std::fprintf(stderr, "evpipe: could not write the summary to standard output (closed pipe?)\n");
+  }
   if (status != 0) std::fprintf(stderr, "evpipe: %s\n", summary.error.c_str());
   return status;
 }
@@ -328,6 +373,7 @@ int run(const Cli& cli) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::signal(SIGPIPE, SIG_IGN);  // a closed stdout/stderr is a write error, not death with rows unwritten
   spdlog::set_default_logger(evpipe::service::make_logger("evpipe"));
 
   Cli cli;

@@ -14,7 +14,7 @@ std::vector<std::string> pose_csv_extra_columns() {
   return {"status", "inliers", "sigma_px"};
 }
 
-std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg) {
+std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg, std::span<const std::string> inputs) {
   const auto& p = cfg.pose;
   if (p.camera.empty() || p.model.empty())
     throw config::ConfigError("pose: --camera and --model (pose.camera, pose.model) are both needed to estimate poses");
@@ -29,7 +29,7 @@ std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg) {
     options.track.step_us = cfg.window.hop_us;
     pose::PoseEstimator estimator(std::move(cam), std::move(model), std::move(prior), options);
     std::optional<camera::TrajectoryCsvWriter> csv;
-    if (!p.poses_out.empty()) csv.emplace(p.poses_out, pose_csv_extra_columns());
+    if (!p.poses_out.empty()) csv.emplace(p.poses_out, pose_csv_extra_columns(), inputs);
     return std::unique_ptr<PoseStage>(
         new PoseStage(std::move(estimator), std::move(csv), p.poses_out, init_on_worker(cfg), p.init_worker_nice));
   } catch (const camera::ModelError& e) {

@@ -7,6 +7,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -37,8 +38,9 @@ struct PoseSummary {
 
 class PoseStage {
  public:
-  /// Loads camera, model and prior named in cfg.pose. Throws config::ConfigError naming the file and field.
-  static std::unique_ptr<PoseStage> create(const config::RunConfig& cfg);
+  /// Loads camera, model and prior named in cfg.pose and creates the poses CSV, which must not be one of `inputs`
+  /// (the program's input files: refused before truncating). Throws config::ConfigError naming the file and field.
+  static std::unique_ptr<PoseStage> create(const config::RunConfig& cfg, std::span<const std::string> inputs = {});
   ~PoseStage();
   PoseStage(const PoseStage&) = delete;
   PoseStage& operator=(const PoseStage&) = delete;

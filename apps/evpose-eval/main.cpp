@@ -19,6 +19,7 @@
 
 #include "evpipe/camera/error.hpp"
 #include "evpipe/camera/trajectory.hpp"
+#include "evpipe/core/file.hpp"
 #include "evpipe/core/json_quote.hpp"
 #include "evpipe/metrics/trajectory.hpp"
 #include "plot.hpp"
@@ -144,6 +145,7 @@ int run(const Options& o) {
   }
 
   if (!o.png.empty()) {  // first: a failure leaves no partial report on stdout
+    evpipe::check_output_file(o.png, std::vector<std::string>{o.estimate, o.truth});
     evpose_eval::PlotInput in;
     in.truth = truth;
     in.eval = &r;

@@ -32,6 +32,7 @@
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/camera/yaml_writer.hpp"
+#include "evpipe/core/file.hpp"
 #include "evpipe/io/writer.hpp"
 #include "evpipe/sim/noise.hpp"
 #include "evpipe/sim/recording.hpp"
@@ -163,21 +164,27 @@ std::string beside(const std::string& out, const std::string& suffix) {
   return p.string() + suffix;
 }
 
+/// The input files (--camera, --model, --trajectory) and the outputs written so far: no output may be one of them
+/// (the same device and inode, links followed; evpipe/core/file.hpp), so no file evsim reads or has just written is
+/// overwritten.
+std::vector<std::string> g_files;
+
 void write_text_file(const std::string& path, const std::string& text) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) throw std::runtime_error(path + ": cannot open for writing");
-  f << text;
-  f.close();
-  if (!f) throw std::runtime_error(path + ": write failed");
+  const UniqueFile f = open_output_file(path, g_files);
+  if (std::fwrite(text.data(), 1, text.size(), f.get()) != text.size() || std::fflush(f.get()) != 0)
+    throw std::runtime_error(path + ": write failed");
+  g_files.push_back(path);
 }
 
 void write_events(const std::string& path, const sim::LabelledEvents& rec, SensorGeometry geometry) {
   io::WriterOptions o;
   o.geometry = geometry;
   o.source_name = "evsim";
+  o.inputs = g_files;
   auto w = io::open_writer(path, io::format_for_output(path), o);
   w->write(rec.events, rec.labels);
   w->close();
+  g_files.push_back(path);
 }
 
 /// The manifest: a YAML document built line by line (numbers in their shortest exact form).
@@ -257,10 +264,13 @@ void write_preview(const std::string& path, const sim::LabelledEvents& rec, Sens
       cv::rectangle(img, cv::Rect(x * s, y * s, s, s), colour, cv::FILLED);
     }
   }
+  check_output_file(path, g_files);
   if (!cv::imwrite(path, img)) throw std::runtime_error(path + ": could not write the image");
+  g_files.push_back(path);
 }
 
 int run(Config& c) {
+  g_files = {c.camera_file, c.model_file, c.trajectory_file};
   const Mode mode = c.pure_noise > 0 ? Mode::pure_noise : (!c.model_file.empty() ? Mode::target3d : Mode::scene2d);
   if (!(c.duration_ms * 1e-3 <= kMaxDuration_s)) {
     throw UsageError(fmt::format("--duration-ms {} is over the {} s evsim accepts", c.duration_ms, kMaxDuration_s));
@@ -374,10 +384,11 @@ int run(Config& c) {
     // holds (its 1 µm / 1e-9 rounding included), so a reader of gt.csv has the very trajectory that made them.
     const std::string gt_path = beside(c.out, ".gt.csv");
     {
-      camera::TrajectoryCsvWriter w(gt_path);
+      camera::TrajectoryCsvWriter w(gt_path, {}, g_files);
       for (const auto& p : trajectory) w.write(p);
       w.flush();
     }
+    g_files.push_back(gt_path);
     files.emplace_back("ground_truth", gt_path);
     scene.trajectory = camera::read_trajectory_csv(gt_path);
 

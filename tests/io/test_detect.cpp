@@ -108,6 +108,41 @@ TEST(Detect, SyntheticHeads) {
   EXPECT_NE(why.find("'t'"), std::string::npos) << why;
 }
 
+// Issue 17 row 11: an AEDAT file cut inside its version line was read as an empty text recording (a '#' comment).
+TEST(Detect, CutAedatVersionLineIsNeverText) {
+  std::string why;
+  for (const char* head : {"#!AER", "#!AER-", "#!AER-DAT", "#!AER-DAT4", "#!AER-DAT4.", "#!AER-DA"}) {
+    EXPECT_EQ(detect(bytes_of(head), &why), Format::unknown) << head;
+    EXPECT_NE(why.find("cut after"), std::string::npos) << head << ": " << why;
+  }
+  EXPECT_EQ(detect(bytes_of("#!AER comment\n1 2 3 1\n"), &why), Format::unknown);
+  EXPECT_NE(why.find("'#!AER-DAT' version line"), std::string::npos) << why;
+  try {
+    io::open_reader(io::memory_source(bytes_of("#!AER"), "cut.aedat4"));
+    FAIL() << "a 5-byte '#!AER' file was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("cut.aedat4: byte 0: "), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(detect(bytes_of("#!A comment\n1 2 3 1\n"), &why), Format::text);  // an ordinary comment
+}
+
+// Issue 17: a UTF-8 byte order mark before event text was rejected as binary.
+TEST(Detect, Utf8ByteOrderMarkBeforeTextIsAccepted) {
+  std::string why;
+  EXPECT_EQ(detect(bytes_of("\xEF\xBB\xBF# width=346 height=260\n1 2 3 1\n"), &why), Format::text) << why;
+  EXPECT_EQ(detect(bytes_of("\xEF\xBB\xBF"
+                            "1 2 3 1\n"),
+                   &why),
+            Format::text)
+      << why;
+  auto r = io::open_reader(io::memory_source(bytes_of("\xEF\xBB\xBF"
+                                                      "1 2 3 1\n2 3 4 0\n"),
+                                             "bom.txt"));
+  std::size_t events = 0;
+  while (auto b = r->next()) events += b->events.size();
+  EXPECT_EQ(events, 2U);
+}
+
 TEST(Detect, OpenReaderRejectsUnknownAndEmptyContentNamingTheSource) {
   for (const Bytes& data : {Bytes{}, bytes_of("% evt 3.0\n"), Bytes{std::byte{0x12}, std::byte{0x00}}}) {
     try {

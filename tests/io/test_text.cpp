@@ -100,6 +100,16 @@ TEST(Text, SeparatorsCommentsBlankLinesAndCrlf) {
   EXPECT_EQ(d.events[4], (Event{5, 6, 7, true}));
 }
 
+TEST(Text, Utf8ByteOrderMarkIsSkipped) {
+  const auto d = read("\xEF\xBB\xBF# width=10 height=20\n1 2 3 1\n");
+  ASSERT_EQ(d.events.size(), 1U);
+  EXPECT_EQ(d.events[0], (Event{1, 2, 3, true}));
+  const auto e = read(
+      "\xEF\xBB\xBF"
+      "1 2 3 1\n");
+  ASSERT_EQ(e.events.size(), 1U);
+}
+
 TEST(Text, GeometryFromCommentOrHeightWidthLineOrDefault) {
   auto r = make_text_reader(io::memory_source(bytes_of("# width=640 height=480\n1 639 479 1\n")), {});
   EXPECT_EQ(r->info().geometry, (SensorGeometry{640, 480}));

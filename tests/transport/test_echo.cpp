@@ -12,10 +12,12 @@
 #include <gtest/gtest.h>
 
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <thread>
 
@@ -94,12 +96,39 @@ TEST(LcmEcho, PrintsALogAsJsonLines) {
 
 TEST(LcmEcho, BadUrlOrMissingLogExitsNonZeroWithOneLineReason) {
   const fs::path dir = temp_dir("bad");
+  // An invalid URL is a usage error found at start (issue 17 row 10).
   const auto r = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --url 'udpm://300.1.2.3:7667?ttl=0' --timeout 1", dir);
-  EXPECT_EQ(r.status, 1);
-  EXPECT_NE(r.err.find("evpipe-lcm-echo: cannot open LCM on udpm://300.1.2.3:7667?ttl=0"), std::string::npos) << r.err;
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "evpipe-lcm-echo: udpm://300.1.2.3:7667?ttl=0: udpm: '300.1.2.3' is not an IPv4 address a.b.c.d\n");
+  const auto t = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --url 'udpm://239.255.76.67:7667?ttl=300' --timeout 1", dir);
+  EXPECT_EQ(t.status, 2);
+  EXPECT_NE(t.err.find("ttl '300' is not an integer 0-255"), std::string::npos) << t.err;
   const auto m = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log /nonexistent/a.lcmlog", dir);
   EXPECT_EQ(m.status, 1);
-  EXPECT_EQ(m.err, "evpipe-lcm-echo: /nonexistent/a.lcmlog: cannot open as an LCM log file\n");
+  EXPECT_EQ(m.err,
+            "evpipe-lcm-echo: /nonexistent/a.lcmlog: cannot open as an LCM log file: cannot open: No such file or "
+            "directory\n");
+  fs::remove_all(dir);
+}
+
+// Issue 17 row 14: a file that is not an LCM log printed nothing and exited 0.
+TEST(LcmEcho, AFileThatIsNotAnLcmLogIsAnErrorNamingIt) {
+  const fs::path dir = temp_dir("notlog");
+  const fs::path text = dir / "notes.txt";
+  std::ofstream(text) << "this is not an LCM log\n";
+  const auto r = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log " + text.string(), dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.err, "evpipe-lcm-echo: " + text.string() +
+                       ": not an LCM log file (no LCM event sync word 0xEDA1DA01 at byte 0)\n");
+  EXPECT_EQ(r.out, "");
+  const fs::path fifo = dir / "fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto f = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log " + fifo.string(), dir);
+  EXPECT_EQ(f.status, 1);
+  EXPECT_NE(f.err.find("is a FIFO, not a regular file"), std::string::npos) << f.err;
+  const auto u = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --timeout 1 --url 'file://" + fifo.string() + "'", dir);
+  EXPECT_EQ(u.status, 1);
+  EXPECT_NE(u.err.find("is a FIFO, not a regular file"), std::string::npos) << u.err;
   fs::remove_all(dir);
 }
 

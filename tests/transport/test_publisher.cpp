@@ -3,11 +3,14 @@
 #include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/lcm_capture.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
+#include "evpipe/transport/lcm_url.hpp"
+#include "lcm_net.hpp"
 
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
 
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 namespace evpipe::transport {
@@ -171,8 +174,99 @@ TEST(LcmPublisher, MissingLogIsAClearError) {
   }
 }
 
+// Issue 17 row 10: an invalid URL is not retried (it cannot recover) and says why.
+TEST(LcmPublisher, InvalidUrlIsDegradedForGoodWithTheReason) {
+  for (const std::string url :
+       {"udpm://300.1.2.3:7667?ttl=0", "nosuchprovider://x", "udpm://239.255.76.67:7667?ttl=300",
+        "udpm://239.255.76.67:7667?ttl=-1", "file:///tmp/x.lcmlog"}) {
+    SCOPED_TRACE(url);
+    LcmPublisherOptions o;
+    o.url = url;
+    o.retry_interval = std::chrono::milliseconds(0);
+    LcmPublisher pub(o);
+    EXPECT_EQ(pub.state(), PublisherState::degraded);
+    EXPECT_FALSE(pub.can_recover());
+    EXPECT_NE(pub.last_error().find(url), std::string::npos) << pub.last_error();
+    EXPECT_FALSE(pub.publish_pose(pose_at(1)));
+    EXPECT_EQ(pub.counters().connect_attempts, 0);
+    EXPECT_EQ(pub.counters().publish_failures, 1);
+  }
+}
+
+TEST(LcmPublisher, MemqUrlConnects) {
+  LcmPublisher pub("memq://");
+  EXPECT_EQ(pub.state(), PublisherState::connected);
+  EXPECT_TRUE(pub.can_recover());
+  EXPECT_TRUE(pub.publish_pose(pose_at(1)));
+}
+
+TEST(LcmUrl, ChecksEveryPart) {
+  const auto why = [](const std::string& url, bool publish = true) {
+    return check_lcm_url(url, publish).value_or("ok");
+  };
+  for (const std::string ok :
+       {"udpm://239.255.76.67:7667?ttl=0", "udpm://239.255.76.67:7667?ttl=255&recv_buf_size=1000", "udpm://",
+        "udpm://239.255.76.67:7667", "memq://", "file:///tmp/a.lcmlog?mode=w", "tcpq://127.0.0.1:7700"})
+    EXPECT_EQ(why(ok), "ok") << ok;
+  EXPECT_EQ(why("file:///tmp/a.lcmlog?speed=0", false), "ok");
+  EXPECT_EQ(why("udpm://239.255.76.67:7667?ttl=300"),
+            "udpm://239.255.76.67:7667?ttl=300: ttl '300' is not an integer 0-255");
+  EXPECT_EQ(why("udpm://239.255.76.67:7667?ttl=-1"),
+            "udpm://239.255.76.67:7667?ttl=-1: ttl '-1' is not an integer 0-255");
+  EXPECT_EQ(why("udpm://239.255.76.67:7667?tll=1"),
+            "udpm://239.255.76.67:7667?tll=1: unknown udpm option 'tll' (known: ttl, recv_buf_size)");
+  EXPECT_EQ(why("udpm://10.0.0.1:7667"),
+            "udpm://10.0.0.1:7667: udpm: 10.0.0.1 is not a multicast group (224.0.0.0 to 239.255.255.255)");
+  EXPECT_EQ(why("udpm://239.255.76.67:70000"),
+            "udpm://239.255.76.67:70000: udpm: port '70000' is not an integer 1-65535");
+  EXPECT_EQ(why("garbage"),
+            "'garbage' is not an LCM URL (provider://target?options, e.g. udpm://239.255.76.67:7667?ttl=0)");
+  EXPECT_EQ(why("file:///tmp/a.lcmlog"),
+            "file:///tmp/a.lcmlog: publishing to a log file needs mode=w (read mode is the default)");
+  EXPECT_EQ(why("file://?mode=w"), "file://?mode=w: file:// needs a path (file:///var/log/evpipe/run.lcmlog?mode=w)");
+  EXPECT_EQ(why("memq://x"), "memq://x: memq:// takes no target or options");
+  EXPECT_EQ(why("tcpq://host"), "tcpq://host: tcpq:// needs host:port (e.g. tcpq://127.0.0.1:7700)");
+}
+
+// Issue 17 row 8: a log on a full disk was reported as written.
+TEST(LcmPublisher, FileLogOnAFullDiskCountsEveryFailure) {
+  LcmPublisher pub("file:///dev/full?mode=w");
+  EXPECT_EQ(pub.state(), PublisherState::connected);
+  EXPECT_TRUE(pub.writes_log());
+  for (int k = 0; k < 5; ++k) EXPECT_FALSE(pub.publish_pose(pose_at(k)));
+  EXPECT_FALSE(pub.publish_stats(StatsRecord{}));
+  const PublisherCounters c = pub.counters();
+  EXPECT_EQ(c.poses_published, 0);
+  EXPECT_EQ(c.publish_failures, 6);
+  EXPECT_NE(pub.last_error().find("No space left on device"), std::string::npos) << pub.last_error();
+}
+
+TEST(LcmPublisher, FileLogThatIsAnInputOrCannotBeCreatedIsRefused) {
+  const fs::path dir = temp_dir("loginput");
+  const std::string input = (dir / "recording.aedat4").string();
+  std::ofstream(input) << "precious";
+  LcmPublisherOptions o;
+  o.url = "file://" + input + "?mode=w";
+  o.inputs = {input};
+  LcmPublisher pub(o);
+  EXPECT_EQ(pub.state(), PublisherState::degraded);
+  EXPECT_FALSE(pub.can_recover());
+  EXPECT_NE(pub.last_error().find("is also an input of this program"), std::string::npos) << pub.last_error();
+  std::ifstream in(input);
+  std::string text;
+  in >> text;
+  EXPECT_EQ(text, "precious");
+  LcmPublisher missing("file://" + (dir / "no/such/dir/x.lcmlog").string() + "?mode=w");
+  EXPECT_FALSE(missing.can_recover());
+  EXPECT_NE(missing.last_error().find("cannot create"), std::string::npos) << missing.last_error();
+  fs::remove_all(dir);
+}
+
+// A valid URL LCM cannot create (udpm without a multicast route: a private network namespace without one).
 TEST(LcmPublisher, UnusableUrlIsADegradedStateNotACrash) {
-  for (const std::string url : {"udpm://300.1.2.3:7667?ttl=0", "nosuchprovider://x"}) {
+  const auto setup = evpipe::testing::enter_private_netns(false);
+  if (!setup.ok) GTEST_SKIP() << "needs a private network namespace: " << setup.message;
+  for (const std::string url : {"udpm://239.255.76.67:7667?ttl=0"}) {
     SCOPED_TRACE(url);
     LcmPublisherOptions o;
     o.url = url;
@@ -196,7 +290,9 @@ TEST(LcmPublisher, UnusableUrlIsADegradedStateNotACrash) {
 
 TEST(LcmPublisher, RetriesAreRateLimited) {
   LcmPublisherOptions o;
-  o.url = "udpm://300.1.2.3:7667?ttl=0";
+  const auto setup = evpipe::testing::enter_private_netns(false);
+  if (!setup.ok) GTEST_SKIP() << "needs a private network namespace: " << setup.message;
+  o.url = "udpm://239.255.76.67:7667?ttl=0";  // valid, but no multicast route: retried
   o.retry_interval = std::chrono::hours(1);
   LcmPublisher pub(o);
   for (int k = 0; k < 100; ++k) {

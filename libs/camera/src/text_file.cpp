@@ -1,6 +1,7 @@
 #include "text_file.hpp"
 
 #include "evpipe/camera/error.hpp"
+#include "evpipe/core/file.hpp"
 
 #include <fmt/format.h>
 
@@ -15,21 +16,19 @@
 namespace evpipe::camera::detail {
 
 std::string read_text_file(const std::string& path, std::uintmax_t max_bytes) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw ModelError(path, "", "is a directory, not a file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ModelError(path, "", fmt::format("cannot open: {}", std::strerror(errno)));
-  in.seekg(0, std::ios::end);
-  const std::streamoff size = in.tellg();
-  if (size < 0) throw ModelError(path, "", "cannot determine the file size");
-  if (static_cast<std::uintmax_t>(size) > max_bytes) {
-    throw ModelError(path, "",
-                     fmt::format("file is {} bytes, more than the {} accepted for this kind of file", size, max_bytes));
+  try {
+    return read_small_file(path, max_bytes);
+  } catch (const FileError& e) {
+    throw ModelError(path, "", e.reason());
   }
-  in.seekg(0, std::ios::beg);
-  std::string text(static_cast<std::size_t>(size), '\0');
-  if (size > 0 && !in.read(text.data(), size)) throw ModelError(path, "", "read error");
-  return text;
+}
+
+void check_input(const std::string& path) {
+  try {
+    check_input_file(path);
+  } catch (const FileError& e) {
+    throw ModelError(path, "", e.reason());
+  }
 }
 
 std::string_view strip_bom(std::string_view text) {

@@ -11,6 +11,9 @@ namespace evpipe::camera::detail {
 /// Reads a whole (small) text file. Checks the size against max_bytes BEFORE allocating.
 /// @throws ModelError(path, "", ...) if it cannot be opened/read or is too large.
 std::string read_text_file(const std::string& path, std::uintmax_t max_bytes);
+/// Refuses what is not a regular file (a FIFO without a writer would block std::ifstream for ever).
+/// @throws ModelError(path, "", ...).
+void check_input(const std::string& path);
 
 /// Strips a UTF-8 byte order mark.
 std::string_view strip_bom(std::string_view text);

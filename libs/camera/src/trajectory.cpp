@@ -79,6 +79,7 @@ void read_header_line(BoundedLineReader& reader, std::string& line, const std::s
 }  // namespace
 
 std::vector<StampedPose> read_trajectory_csv(const std::string& path) {
+  detail::check_input(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ModelError(path, "", fmt::format("cannot open: {}", std::strerror(errno)));
   BoundedLineReader reader(in, path);
@@ -147,6 +148,7 @@ std::vector<StampedPose> read_trajectory_csv(const std::string& path) {
 }
 
 std::optional<std::vector<std::string>> read_trajectory_column(const std::string& path, std::string_view column) {
+  detail::check_input(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ModelError(path, "", fmt::format("cannot open: {}", std::strerror(errno)));
   BoundedLineReader reader(in, path);
@@ -197,9 +199,19 @@ std::string quaternion_cells(const Eigen::Quaterniond& q_in) {
 
 }  // namespace
 
-TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& extra_columns)
-    : path_(path), extra_count_(extra_columns.size()), out_(path, std::ios::binary | std::ios::trunc) {
-  if (!out_) throw std::runtime_error(fmt::format("{}: cannot open for writing: {}", path_, std::strerror(errno)));
+namespace {
+
+void write_whole(std::FILE* f, const std::string& path, const char* data, std::size_t n) {
+  // One row (or the header) into the emptied buffer, then flushed: one write(2) of whole rows.
+  if (std::fwrite(data, 1, n, f) != n || std::fflush(f) != 0)
+    throw std::runtime_error(fmt::format("{}: write error: {}", path, std::strerror(errno)));
+}
+
+}  // namespace
+
+TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& extra_columns,
+                                         std::span<const std::string> inputs)
+    : path_(path), extra_count_(extra_columns.size()), out_(open_output_file(path, inputs)) {
   std::string header = "t_us,x_m,y_m,z_m,qw,qx,qy,qz";
   for (const auto& c : extra_columns) {
     if (c.find_first_of(",\r\n") != std::string::npos) {
@@ -208,8 +220,7 @@ TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vec
     header += ',' + c;
   }
   header += '\n';
-  out_ << header;
-  if (!out_) throw std::runtime_error(fmt::format("{}: write error", path_));
+  write_whole(out_.get(), path_, header.data(), header.size());
 }
 
 void TrajectoryCsvWriter::write(const StampedPose& sp, std::span<const std::string> extra_values) {
@@ -232,13 +243,12 @@ void TrajectoryCsvWriter::write(const StampedPose& sp, std::span<const std::stri
     row.append(e);
   }
   row.push_back('\n');
-  out_.write(row.data(), static_cast<std::streamsize>(row.size()));
-  if (!out_) throw std::runtime_error(fmt::format("{}: write error", path_));
+  write_whole(out_.get(), path_, row.data(), row.size());
 }
 
 void TrajectoryCsvWriter::flush() {
-  out_.flush();
-  if (!out_) throw std::runtime_error(fmt::format("{}: write error", path_));
+  if (std::fflush(out_.get()) != 0)
+    throw std::runtime_error(fmt::format("{}: write error: {}", path_, std::strerror(errno)));
 }
 
 std::optional<Pose> interpolate(const std::vector<StampedPose>& trajectory, std::int64_t t_us) {

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "evpipe/core/event.hpp"
+#include "evpipe/core/file.hpp"
 #include "evpipe/core/filter_chain.hpp"
 
 namespace evpipe::config {
@@ -563,11 +564,13 @@ RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
 }
 
 RunConfig load_config(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(fmt::format("{}: cannot open the configuration file", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_config(ss.str(), path);
+  std::string text;
+  try {
+    text = read_small_file(path, kMaxConfigBytes, "a run configuration");  // regular files only, never blocks
+  } catch (const FileError& e) {
+    throw ConfigError(e.what());
+  }
+  return parse_config(text, path);
 }
 
 std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params() const {

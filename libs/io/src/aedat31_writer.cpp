@@ -39,7 +39,7 @@ class Aedat31Writer final : public EventWriter {
                                               options_.geometry.width, options_.geometry.height));
     // Bounds the packet buffer (a packet could hold INT32_MAX events).
     packet_events_ = std::min<std::size_t>(packet_events_, std::size_t{1} << 20);
-    out_ = std::make_unique<OutputFile>(path);
+    out_ = std::make_unique<OutputFile>(path, options_.inputs);
     write_header();
   }
 

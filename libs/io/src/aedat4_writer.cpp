@@ -110,7 +110,7 @@ class Aedat4Writer final : public EventWriter {
       throw std::invalid_argument(fmt::format("{}: sensor size {}x{} cannot be written to AEDAT 4.0", path,
                                               options.geometry.width, options.geometry.height));
 
-    out_ = std::make_unique<OutputFile>(path);
+    out_ = std::make_unique<OutputFile>(path, options.inputs);
 
     // force_defaults: data_table_position = -1 gets a slot that close() can patch in place.
     flatbuffers::FlatBufferBuilder fbb(4096);

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "evpipe/core/error.hpp"
+#include "evpipe/core/file.hpp"
 
 namespace evpipe::io {
 
@@ -87,9 +88,7 @@ class MemorySource final : public ByteSource {
 }  // namespace
 
 std::unique_ptr<ByteSource> open_file(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) throw SourceError(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
-  return std::make_unique<FileSource>(f, path);
+  return std::make_unique<FileSource>(open_input_file(path).release(), path);
 }
 
 std::unique_ptr<ByteSource> memory_source(std::span<const std::byte> data, std::string name) {

@@ -81,7 +81,8 @@ inline std::uint32_t load_be32(const std::byte* p) noexcept {
 /// close"); the destructor closes without throwing.
 class OutputFile {
  public:
-  explicit OutputFile(std::string path);
+  /// `inputs`: files it must not be (evpipe/core/file.hpp: refused before anything is truncated).
+  explicit OutputFile(std::string path, std::span<const std::string> inputs = {});
   ~OutputFile();
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;

@@ -5,12 +5,12 @@
 #include <stdexcept>
 
 #include "detail.hpp"
+#include "evpipe/core/file.hpp"
 
 namespace evpipe::io::detail {
 
-OutputFile::OutputFile(std::string path) : path_(std::move(path)) {
-  file_ = std::fopen(path_.c_str(), "wb");
-  if (file_ == nullptr) throw SourceError(fmt::format("{}: cannot create: {}", path_, std::strerror(errno)));
+OutputFile::OutputFile(std::string path, std::span<const std::string> inputs) : path_(std::move(path)) {
+  file_ = open_output_file(path_, inputs).release();
 }
 
 OutputFile::~OutputFile() {

@@ -47,6 +47,19 @@ Format detect_format(std::span<const std::byte> head, std::string* why) {
   if (starts_with(head, "#!AER-DAT2.0")) return Format::aedat2;
   if (starts_with(head, "#!AER-DAT3.1")) return Format::aedat31;
   if (starts_with(head, "#!AER-DAT4.0")) return Format::aedat4;
+  // A file starting like an AEDAT version line (even only "#!AER") is never read as text (a '#' comment line).
+  if (starts_with(head, "#!AER")) {
+    constexpr std::string_view kMagic = "#!AER-DAT";
+    const std::string_view text(reinterpret_cast<const char*>(head.data()), head.size());
+    if (head.size() < 12 && (kMagic.starts_with(text) || text.starts_with(kMagic))) {
+      say(fmt::format("the AEDAT version line is cut after {} byte(s) (truncated file?)", head.size()));
+      return Format::unknown;
+    }
+    if (!starts_with(head, kMagic)) {
+      say("starts with '#!AER' but not with an '#!AER-DAT' version line");
+      return Format::unknown;
+    }
+  }
   if (starts_with(head, "#!AER-DAT")) {
     std::string version;
     for (std::size_t i = 9; i < head.size() && i < 16 && is_text_byte(head[i]) && static_cast<char>(head[i]) != '\r' &&
@@ -70,7 +83,9 @@ Format detect_format(std::span<const std::byte> head, std::string* why) {
       say("a Prophesee file ('%' header: DAT or RAW) is not an evpipe format");
     return Format::unknown;
   }
-  // Text: printable bytes only, and the first line that is not a comment starts like a number.
+  // Text: printable bytes only (after a UTF-8 byte order mark), and the first line that is not a comment starts
+  // like a number.
+  if (starts_with(head, "\xEF\xBB\xBF")) head = head.subspan(3);
   std::size_t i = 0;
   bool all_text = true;
   for (const auto b : head) {

@@ -153,6 +153,7 @@ class TextReader final : public FileReader {
       return false;
     }
     ++line_no_;
+    if (line_no_ == 1 && line.starts_with("\xEF\xBB\xBF")) line.remove_prefix(3);  // a UTF-8 byte order mark
     if (status == detail::ChunkedInput::LineStatus::too_long)
       fail(offset, fmt::format("line longer than {} bytes (not an event text file?)", kMaxLine));
     return true;

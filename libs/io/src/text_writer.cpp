@@ -18,7 +18,8 @@ constexpr std::size_t kFlushBytes = std::size_t{1} << 20;
 
 class TextWriter final : public EventWriter {
  public:
-  TextWriter(const std::string& path, const WriterOptions& options) : path_(path), options_(options), out_(path) {
+  TextWriter(const std::string& path, const WriterOptions& options)
+      : path_(path), options_(options), out_(path, options.inputs) {
     fmt::format_to(std::back_inserter(buf_), "# width={} height={}\n", options_.geometry.width,
                    options_.geometry.height);
   }

@@ -1,11 +1,14 @@
 #include "evpipe/transport/lcm_capture.hpp"
 
+#include "evpipe/core/file.hpp"
 #include "evpipe/transport/codec.hpp"
 
 #include <fmt/format.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include <cstdio>
 #include <stdexcept>
+#include <string_view>
 #include <utility>
 
 namespace evpipe::transport {
@@ -126,6 +129,21 @@ std::vector<StatsRecord> LcmCapture::stats(const std::string& channel) const {
 }
 
 std::vector<ReceivedMessage> read_lcm_log(const std::filesystem::path& path) {
+  // A regular file (a FIFO would block LCM's fopen) that starts with an event's sync word: LCM's reader would
+  // otherwise scan any file for one and report no events.
+  std::string head;
+  try {
+    auto f = open_input_file(path.string());
+    head.resize(4);
+    head.resize(std::fread(head.data(), 1, head.size(), f.get()));
+  } catch (const FileError& e) {
+    throw std::runtime_error(fmt::format("{}: cannot open as an LCM log file: {}", path.string(), e.reason()));
+  }
+  constexpr std::string_view kSync("\xED\xA1\xDA\x01", 4);  // LCM's event sync word, big-endian
+  if (!head.empty() && head != kSync) {
+    throw std::runtime_error(
+        fmt::format("{}: not an LCM log file (no LCM event sync word 0xEDA1DA01 at byte 0)", path.string()));
+  }
   lcm::LogFile log(path.string(), "r");
   if (!log.good()) {
     throw std::runtime_error(fmt::format("{}: cannot open as an LCM log file", path.string()));

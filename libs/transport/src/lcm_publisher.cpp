@@ -1,13 +1,19 @@
 #include "evpipe/transport/lcm_publisher.hpp"
 
+#include "evpipe/core/file.hpp"
 #include "evpipe/transport/codec.hpp"
+#include "evpipe/transport/lcm_url.hpp"
 
 #include <fmt/format.h>
+#include <lcm/eventlog.h>
 #include <spdlog/spdlog.h>
 #include <lcm/lcm-cpp.hpp>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <utility>
 
 namespace evpipe::transport {
@@ -27,13 +33,44 @@ std::string effective_lcm_url(const std::string& url) {
   return kLcmBuiltinDefaultUrl;
 }
 
+struct LcmPublisher::LogSink {
+  UniqueFile file;
+  lcm_eventlog_t log{};
+  bool failing{false};
+};
+
 LcmPublisher::LcmPublisher(LcmPublisherOptions options) : options_(std::move(options)) {
   const std::lock_guard lock(mutex_);
+  const std::string url = effective_lcm_url(options_.url);
+  LcmUrl parsed;
+  if (auto why = check_lcm_url(url, true, &parsed)) {
+    can_retry_ = false;
+    last_error_ = *why;
+    spdlog::warn("LCM: {}; nothing will be published", last_error_);
+    return;
+  }
+  if (parsed.provider == "file") {
+    can_retry_ = false;
+    is_log_ = true;
+    ++counters_.connect_attempts;
+    try {
+      auto sink = std::make_unique<LogSink>();
+      sink->file = open_output_file(parsed.target, options_.inputs);
+      sink->log.f = sink->file.get();
+      log_ = std::move(sink);
+    } catch (const FileError& e) {
+      ++counters_.connect_failures;
+      last_error_ = fmt::format("LCM log {}", e.what());
+      spdlog::warn("LCM: {}; nothing will be published", last_error_);
+    }
+    return;
+  }
   ensure_connected_locked();
+  can_retry_ = parsed.provider != "memq";  // memq:// cannot fail for a reason that goes away
 }
 
 LcmPublisher::LcmPublisher(std::string url, std::string pose_channel, std::string stats_channel)
-    : LcmPublisher(LcmPublisherOptions{std::move(url), std::move(pose_channel), std::move(stats_channel), {}}) {}
+    : LcmPublisher(LcmPublisherOptions{std::move(url), std::move(pose_channel), std::move(stats_channel), {}, {}}) {}
 
 LcmPublisher::LcmPublisher(std::shared_ptr<lcm::LCM> lcm, std::string pose_channel, std::string stats_channel)
     : can_retry_(false) {
@@ -94,6 +131,34 @@ bool LcmPublisher::ensure_connected_locked() {
 }
 
 bool LcmPublisher::send_locked(const std::string& channel, const void* data, std::size_t size) {
+  if (log_) {
+    lcm_eventlog_event_t e{};
+    e.timestamp = wall_clock_utime_us();
+    e.channellen = static_cast<std::int32_t>(channel.size());
+    e.channel = const_cast<char*>(channel.c_str());  // NOLINT(cppcoreguidelines-pro-type-const-cast): read only
+    e.datalen = static_cast<std::int32_t>(size);
+    e.data = const_cast<void*>(data);  // NOLINT(cppcoreguidelines-pro-type-const-cast): read only
+    // Whole events: each one is flushed as it is written (a kill loses none; a full disk shows at once).
+    errno = 0;
+    if (lcm_eventlog_write_event(&log_->log, &e) != 0 || std::fflush(log_->file.get()) != 0 ||
+        std::ferror(log_->file.get()) != 0) {
+      const int err = errno;
+      std::clearerr(log_->file.get());
+      if (!log_->failing) {
+        last_error_ = fmt::format("cannot write the LCM log: {}", err != 0 ? std::strerror(err) : "write error");
+        spdlog::warn("LCM: {}; counting failures", last_error_);
+      }
+      log_->failing = true;
+      ++counters_.publish_failures;
+      return false;
+    }
+    if (log_->failing) {
+      spdlog::info("LCM: writing the log again");
+      last_error_.clear();
+      log_->failing = false;
+    }
+    return true;
+  }
   if (!ensure_connected_locked()) {
     ++counters_.publish_failures;
     return false;
@@ -160,7 +225,17 @@ bool LcmPublisher::publish_stats(const StatsRecord& r) {
 
 PublisherState LcmPublisher::state() const {
   const std::lock_guard lock(mutex_);
-  return lcm_ ? PublisherState::connected : PublisherState::degraded;
+  return (lcm_ || log_) ? PublisherState::connected : PublisherState::degraded;
+}
+
+bool LcmPublisher::can_recover() const {
+  const std::lock_guard lock(mutex_);
+  return lcm_ || log_ || can_retry_;
+}
+
+bool LcmPublisher::writes_log() const {
+  const std::lock_guard lock(mutex_);
+  return is_log_;
 }
 
 PublisherCounters LcmPublisher::counters() const {
@@ -175,8 +250,9 @@ std::string LcmPublisher::last_error() const {
 
 std::string LcmPublisher::status_text() const {
   const std::lock_guard lock(mutex_);
-  const std::string url = can_retry_ ? effective_lcm_url(options_.url) : options_.url;
-  if (!lcm_) {
+  const std::string url = options_.url == "(shared instance)" ? options_.url : effective_lcm_url(options_.url);
+  if (!lcm_ && !log_) {
+    if (!can_retry_) return fmt::format("LCM unavailable on {}: {}", url, last_error_);
     return fmt::format("LCM unavailable on {} ({} attempt(s)), retrying", url, counters_.connect_attempts);
   }
   if (!last_error_.empty()) {

@@ -3,6 +3,7 @@
 // pose T_cam_model per row, positions in metres.
 
 #include "evpipe/camera/pose.hpp"
+#include "evpipe/core/file.hpp"
 
 #include <array>
 #include <cstdint>
@@ -38,11 +39,16 @@ inline constexpr std::array<std::string_view, 8> kTrajectoryColumns = {"t_us", "
 /// Writes a trajectory CSV: header t_us,x_m,y_m,z_m,qw,qx,qy,qz[,extra...], then one row per write():
 /// t_us as an integer, positions with 6 decimals (1 µm), quaternion (unit, qw >= 0) with 9 decimals, chosen (in
 /// the last digit) so that write → read_trajectory_csv() → write gives the same bytes.
+/// Durability: the header and every row go to the file whole, each in one write, as write() is called (nothing waits
+/// in a buffer of the process): a program killed (SIGKILL, watchdog abort, OOM) loses no row it wrote, and leaves no
+/// partial row unless the kernel itself was cut short (power loss: no fsync).
 class TrajectoryCsvWriter {
  public:
-  /// Creates/truncates the file and writes the header. extra_columns are appended after the eight.
-  /// @throws std::runtime_error naming the file if it cannot be opened.
-  explicit TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& extra_columns = {});
+  /// Creates/truncates the file and writes the header. extra_columns are appended after the eight. `inputs`: the
+  /// program's input files, which the output must not be (refused before truncating; evpipe/core/file.hpp).
+  /// @throws std::runtime_error (evpipe::FileError) naming the file if it cannot be opened or is an input.
+  explicit TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& extra_columns = {},
+                               std::span<const std::string> inputs = {});
 
   /// One row. extra_values must have one entry per extra column (std::invalid_argument otherwise); they are
   /// written verbatim, so they must not contain commas or newlines.
@@ -55,7 +61,7 @@ class TrajectoryCsvWriter {
  private:
   std::string path_;
   std::size_t extra_count_{0};
-  std::ofstream out_;
+  UniqueFile out_;
 };
 
 /// The pose at t_us, interpolated (slerp + linear) between the two rows around it, found by binary search.

@@ -160,6 +160,9 @@ struct RunConfig {
 /// Loads `path` over the defaults. Throws ConfigError (file, key, reason) on unreadable files, syntax errors,
 /// unknown keys, and values of the wrong type or out of range.
 RunConfig load_config(const std::string& path);
+/// The largest run configuration load_config() reads (the shipped ones are ~10 KB): a regular file only (a FIFO,
+/// device or directory is refused without blocking), checked before reading.
+inline constexpr std::uint64_t kMaxConfigBytes = 1 << 20;
 /// Parses YAML text (for tests); `name` is used in messages.
 RunConfig parse_config(const std::string& yaml_text, const std::string& name = "<config>");
 

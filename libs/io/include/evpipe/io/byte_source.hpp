@@ -34,7 +34,8 @@ class ByteSource {
   bool read_exact(std::span<std::byte> dst);
 };
 
-/// A file opened read-only; throws evpipe::SourceError naming the path when it cannot be opened.
+/// A regular file opened read-only (never blocks: a FIFO, directory or device is refused); throws
+/// evpipe::SourceError (FileError) naming the path when it cannot be opened.
 std::unique_ptr<ByteSource> open_file(const std::string& path);
 /// A view of memory (not copied: the caller keeps it alive). For fuzzers and tests.
 std::unique_ptr<ByteSource> memory_source(std::span<const std::byte> data, std::string name = "<memory>");

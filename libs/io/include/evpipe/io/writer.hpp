@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "evpipe/core/event.hpp"
 #include "evpipe/io/reader.hpp"
@@ -20,6 +21,9 @@ struct WriterOptions {
   bool write_labels = true;
   /// AEDAT 4.0 compression: "lz4" (default), "zstd" or "none".
   std::string compression = "lz4";
+  /// The program's input files: the output must not be one of them (same device and inode, links followed);
+  /// open_writer() then throws SourceError before truncating anything (evpipe/core/file.hpp).
+  std::vector<std::string> inputs;
 };
 
 class EventWriter {

@@ -65,8 +65,9 @@ class LcmCapture {
   bool keep_{true};
 };
 
-/// Every event of an LCM log file (lcm-logger, file://...?mode=w), in order. Throws std::runtime_error naming
-/// the file when it cannot be opened.
+/// Every event of an LCM log file (lcm-logger, file://...?mode=w), in order (an empty file has none). Throws
+/// std::runtime_error naming the file when it cannot be opened, is not a regular file, or does not start with an
+/// LCM event.
 [[nodiscard]] std::vector<ReceivedMessage> read_lcm_log(const std::filesystem::path& path);
 
 }  // namespace evpipe::transport

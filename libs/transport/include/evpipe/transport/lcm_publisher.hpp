@@ -7,6 +7,13 @@
 // as failed, and re-try creating the LCM instance at most once per retry_interval. The caller polls state() /
 // counters() for its status line (sd_notify STATUS, stats message).
 //
+// Only what can recover is retried (udpm/mpudpm: a missing route; tcpq: a server not up yet): a URL that
+// check_lcm_url() rejects, or a log file that cannot be created, leaves the publisher degraded for good with
+// can_recover() false, so that the application can refuse to start. A file:// log (mode=w) is written by the
+// publisher itself in LCM's log format (what lcm-logger writes), through evpipe/core/file.hpp (never one of
+// `inputs`): each message is flushed whole as it is published, and a write error (full disk) is counted as a
+// failure and logged once, not hidden in a buffer.
+//
 // Thread safety: every member may be called from any thread (one mutex; a publish is a single UDP send).
 
 #include "evpipe/transport/records.hpp"
@@ -16,6 +23,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 namespace lcm {
 class LCM;
@@ -30,6 +38,8 @@ struct LcmPublisherOptions {
   std::string stats_channel{kDefaultStatsChannel};
   /// Minimum time between two attempts to create the LCM instance while degraded.
   std::chrono::milliseconds retry_interval{1000};
+  /// file:// logs: the program's input files, which the log must not be (refused before truncating).
+  std::vector<std::string> inputs;
 };
 
 enum class PublisherState : std::uint8_t {
@@ -65,6 +75,11 @@ class LcmPublisher {
   bool publish_stats(const StatsRecord& r);
 
   [[nodiscard]] PublisherState state() const;
+  /// False when the publisher is degraded for good (an invalid URL, a log file that cannot be created): nothing
+  /// is retried; last_error() says why.
+  [[nodiscard]] bool can_recover() const;
+  /// True for a file:// log.
+  [[nodiscard]] bool writes_log() const;
   [[nodiscard]] PublisherCounters counters() const;
   /// Why the publisher is degraded or the last send failed; empty when all is well.
   [[nodiscard]] std::string last_error() const;
@@ -73,6 +88,7 @@ class LcmPublisher {
   [[nodiscard]] std::string status_text() const;
 
  private:
+  struct LogSink;
   bool ensure_connected_locked();
   bool send_locked(const std::string& channel, const void* data, std::size_t size);
 
@@ -80,6 +96,8 @@ class LcmPublisher {
   bool can_retry_{true};
   mutable std::mutex mutex_;
   std::shared_ptr<lcm::LCM> lcm_;
+  std::unique_ptr<LogSink> log_;  ///< a file:// log written by the publisher (then lcm_ stays null)
+  bool is_log_{false};
   std::chrono::steady_clock::time_point last_attempt_{};
   std::int64_t next_pose_seq_{0};
   std::int64_t next_stats_seq_{0};
