@@ -177,6 +177,15 @@ def main() -> None:
                 rows.append((name, label, dv_mev, ev_mev, ev_mev / dv_mev, kept_dv / len(ev), same))
                 print(f"  {label:<12} dv {dv_mev:7.1f} Mev/s   evpipe {ev_mev:7.1f} Mev/s   evpipe/dv {ev_mev / dv_mev:5.2f}"
                       f"   kept {100 * kept_dv / len(ev):5.1f} %{'' if same else f'  KEPT DIFFERS: evpipe {kept_ev}'}")
+            # evpipe's pipeline default (issue 18), timed the same way; its ratio to dv-processing's BA of this run.
+            dv_ba = next(r[2] for r in rows if r[0] == name and r[1] == "BA 2 ms")
+            best_sig, kept_sig = float("inf"), -1
+            for _ in range(args.runs):
+                kept_sig, s = evpipe_pass(tool, ["--filter", "significance"], path, tile, 2)
+                best_sig = min(best_sig, s)
+            sig_mev = len(ev) / best_sig * 1e-6
+            print(f"  significance evpipe {sig_mev:7.1f} Mev/s   significance/dv BA {sig_mev / dv_ba:5.2f}"
+                  f"   kept {100 * kept_sig / len(ev):5.1f} %")
 
     print("\n| dataset | filter | dv-processing Mev/s | evpipe Mev/s | evpipe/dv | kept |")
     print("|---|---|---:|---:|---:|---:|")

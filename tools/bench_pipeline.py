@@ -17,6 +17,9 @@ Runs only evpipe's own binaries; no third-party Python package is needed:
   3. every scene once more at --speed 1 (curvature): at --speed max the latencies include queueing behind an
      unpaced source, so the real-time figure of the "window end → LCM p99 ≤ 2 ms" goal is taken here;
   4. one run over udpm (LCM's default transport) when `ip route` has a multicast route, else it says why not;
+  4b. the preview's cost (issue 22): the long file (--quick: 15 s) at --speed 1 with the preview off and on
+     (--preview, 10 Hz), --preview-pairs interleaved pairs in the same run of this script, over udpm when there is
+     a multicast route (else memq://): window end -> LCM p99 with the preview on must stay within 10 % of off;
   5. prints one table per build, the RSS-over-time of the long file, and the goals with ratios and met / NOT met.
      With --native-build a second build is measured the same way and the Mev/s of both are compared.
 
@@ -27,7 +30,7 @@ good for throughput, ≤ 1 for RSS and latency). A shared, loaded machine moves 
 
   tools/bench_pipeline.py [--build build/release] [--native-build DIR] [--quick] [--cache DIR] [--long-s 60]
                           [--high-rate-hz 130] [--denoise curvature,baf,none] [--udpm auto|off|URL]
-                          [--timeout S] [--out FILE] [--check]
+                          [--preview-pairs 2] [--timeout S] [--out FILE] [--check]
 
 --quick: the two 5 Hz/pixel scenes, a 15 s long file, no high-rate stream, curvature only (a smoke run).
 Exit status: 0 measured (goals met or not; with --check: 3 when a goal is not met); 1 a tool is missing or a
@@ -58,6 +61,7 @@ PROG = "bench_pipeline.py"
 GOAL_MEV_S = 12.0  # the DAVIS346's peak event rate
 GOAL_RSS_MB = 200.0
 GOAL_LATENCY_MS = 2.0  # window end → LCM, p99
+PREVIEW_TOLERANCE = 0.10  # issue 22: window end → LCM p99 with the preview on within 10 % of off
 # "Flat": the largest RSS of the second half of the long run exceeds that of the first half by at most this
 # share of the first half's (or RSS_FLAT_MB, whichever is larger: allocator noise on a small process).
 RSS_FLAT_SHARE = 0.05
@@ -151,6 +155,7 @@ class Run:
     pose: bool = True
     denoise_threads: int | None = None  # None: evpipe's default (denoise.threads: auto)
     init_worker: str | None = None  # None: evpipe's default (pose.init_worker: auto = in-line at --speed max)
+    preview: bool = False  # evpipe --preview (the LCM preview for evpipe-view)
     summary: dict = field(default_factory=dict)
     wall_s: float = 0.0
     peak_rss_mb: float = 0.0
@@ -190,10 +195,10 @@ def vm_rss_mb(pid: int) -> float | None:
 
 def run_evpipe(evpipe: str, scene_path: Path, s: Scene, denoise: str, speed: str, lcm_url: str, sample_s: float,
                timeout: float, pose: bool = True, denoise_threads: int | None = None,
-               init_worker: str | None = None) -> Run:
-    res = Run(s, denoise, speed, lcm_url, pose, denoise_threads, init_worker)
+               init_worker: str | None = None, preview: bool = False) -> Run:
+    res = Run(s, denoise, speed, lcm_url, pose, denoise_threads, init_worker, preview)
     cmd = [evpipe, "--replay", str(scene_path), "--speed", speed, "--no-progress", "--json", "--denoise", denoise,
-           "--lcm-url", lcm_url]
+           "--lcm-url", lcm_url] + (["--preview"] if preview else [])
     settings = ([f"denoise:\n  threads: {denoise_threads}\n"] if denoise_threads is not None else []) + \
         ([f"pose:\n  init_worker: {init_worker}\n"] if init_worker is not None else [])
     if settings:
@@ -278,6 +283,8 @@ class BuildResult:
     build_type: str
     runs: list[Run] = field(default_factory=list)
     udpm_note: str = ""
+    preview_runs: list[Run] = field(default_factory=list)  # (off, on) pairs, interleaved
+    preview_note: str = ""
 
 
 def cmake_cache_value(build: Path, key: str) -> str:
@@ -344,7 +351,55 @@ def measure(label: str, build: Path, evpipe: str, scenes: dict[Scene, Path], den
         print(f"{PROG}: [{label}] {s.name} --speed 1 over {url}", file=sys.stderr, flush=True)
         br.runs.append(guarded(run_evpipe, evpipe, scenes[s], s, denoisers[0], "1", url, a.sample_s, a.timeout))
         br.udpm_note = f"udpm: {url}" + (f" (route: {route})" if route else "")
+    if a.preview_pairs > 0 and not a.no_realtime:
+        s = next((x for x in scenes if x.kind == "long"), None) or next(x for x in scenes if x.kind == "standard")
+        url = UDPM_URL if (udpm != "off" and route is not None) else "memq://"
+        br.preview_note = f"{s.name}, --speed 1, {denoisers[0]}, {url}"
+        for i in range(a.preview_pairs):
+            for on in (False, True):
+                print(f"{PROG}: [{label}] {s.name} --speed 1, preview {'on' if on else 'off'} ({i + 1}/{a.preview_pairs})",
+                      file=sys.stderr, flush=True)
+                try:
+                    br.preview_runs.append(run_evpipe(evpipe, scenes[s], s, denoisers[0], "1", url, a.sample_s,
+                                                      a.timeout, preview=on))
+                except Failure as e:
+                    print(f"{PROG}: {e}", file=sys.stderr)
+                    br.preview_runs.append(Run(s, denoisers[0], "1", url, preview=on, failure=str(e)))
     return br
+
+
+def preview_table(br: BuildResult) -> list[str]:
+    """The preview on / off pairs and the ratio of the p99 medians (issue 22: on within 10 % of off)."""
+    if not br.preview_runs:
+        return []
+    head = f"{'pair':>4} {'preview':>7} {'win→LCM p50 ms':>15} {'p99 ms':>8} {'max ms':>8} {'poses':>6} {'drops':>5}"
+    out = [f"preview cost ({br.preview_note}; pairs interleaved in this run)", "", head, "-" * len(head)]
+    for i, r in enumerate(br.preview_runs):
+        if r.failure:
+            out.append(f"{i // 2 + 1:>4} {'on' if r.preview else 'off':>7} failed")
+            continue
+        sm = r.summary
+        drops = sum((sm.get("queue_drops") or {}).values())
+        out.append(f"{i // 2 + 1:>4} {'on' if r.preview else 'off':>7} {f(sm.get('latency_window_ms_p50')):>15} "
+                   f"{f(sm.get('latency_window_ms_p99')):>8} {f(sm.get('latency_window_ms_max')):>8} "
+                   f"{sm.get('lcm_poses', 0):>6} {drops:>5}")
+    ratio = preview_ratio(br)
+    if ratio is not None:
+        p50 = preview_ratio(br, "latency_window_ms_p50")
+        out += ["", f"median p99 on / off = {ratio:.3f} (goal <= {1 + PREVIEW_TOLERANCE:.2f}): "
+                f"{'met' if ratio <= 1 + PREVIEW_TOLERANCE else 'NOT met'}; median p50 on / off = {f(p50, 3)} [info]. "
+                "A p99 of a few hundred windows is a handful of the slowest: on a shared machine compare the spread "
+                "of the pairs, not one ratio."]
+    return out
+
+
+def preview_ratio(br: BuildResult, key: str = "latency_window_ms_p99") -> float | None:
+    def med(v: list[float]) -> float | None:
+        v = sorted(v)
+        return None if not v else (v[len(v) // 2] if len(v) % 2 else (v[len(v) // 2 - 1] + v[len(v) // 2]) / 2)
+    on = med([r.summary[key] for r in br.preview_runs if r.preview and not r.failure])
+    off = med([r.summary[key] for r in br.preview_runs if not r.preview and not r.failure])
+    return None if on is None or off is None or off <= 0 else on / off
 
 
 # ---- report --------------------------------------------------------------------------------------------------
@@ -507,6 +562,8 @@ def main() -> None:
     ap.add_argument("--denoise", help="comma-separated evpipe --denoise values (default curvature,baf,none; "
                     "--quick: curvature); the first is used for the --speed 1 runs")
     ap.add_argument("--no-realtime", action="store_true", help="skip the --speed 1 runs")
+    ap.add_argument("--preview-pairs", type=int, default=2,
+                    help="interleaved preview off/on pairs at --speed 1 on the long file (issue 22; 0: none)")
     ap.add_argument("--udpm", default="auto", help="auto (run over udpm if a multicast route exists), off, or a URL")
     ap.add_argument("--sample-s", type=float, default=0.5, help="VmRSS sampling period (s)")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per program run")
@@ -565,6 +622,8 @@ def main() -> None:
         out += rss_lines(br, a.sample_s) or ["  (no long-file run)"]
         out += ["", "goals (issue 6; ratio = measured / goal)", ""]
         out += goal_table(br)
+        if br.preview_runs:
+            out += [""] + preview_table(br)
         out.append("")
     if len(results) == 2:
         out += [f"## {results[1].label} vs {results[0].label} (--speed max, Mev/s; ratio = "
@@ -576,10 +635,11 @@ def main() -> None:
     if a.out:
         Path(a.out).write_text(text + "\n")
 
-    failures = [r.failure for br in results for r in br.runs if r.failure]
+    failures = [r.failure for br in results for r in br.runs + br.preview_runs if r.failure]
     if failures:
         fail_exit(f"{len(failures)} run(s) failed:\n" + "\n".join(failures))
-    if a.check and any(met is False for br in results for *_, met in goal_rows(br)):
+    preview_not_met = any((preview_ratio(br) or 0.0) > 1 + PREVIEW_TOLERANCE for br in results)
+    if a.check and (preview_not_met or any(met is False for br in results for *_, met in goal_rows(br))):
         sys.exit(3)
 
 

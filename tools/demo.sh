@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
 cmake --preset release >/dev/null
-cmake --build --preset release -j"$(nproc)" --target evpipe evpipe-lcm-echo evpose-eval evconvert evsim \
+cmake --build --preset release -j"$(nproc)" --target evpipe evpipe-view evpipe-lcm-echo evpose-eval evconvert evsim \
   evpipe_lcmtypes_jar
 bin=build/release/apps
 sample=tests/data/roadheader-sample
@@ -34,7 +34,7 @@ echo
 echo "== evpipe --replay $sample.aedat4 (real-time pace, 3 s) =="
 "$bin/evpipe/evpipe" --replay "$sample.aedat4" --speed 1 \
   --camera "$sample.camera.yaml" --model "$sample.model.yaml" --prior "$sample.prior.yaml" \
-  --ground-truth "$sample.gt.csv" --poses-out build/release/demo-poses.csv --lcm-url "$url" "$@"
+  --ground-truth "$sample.gt.csv" --poses-out build/release/demo-poses.csv --lcm-url "$url" --preview "$@"
 sleep 0.5
 kill "$echo_pid" 2>/dev/null || true
 wait "$echo_pid" 2>/dev/null || true
@@ -49,4 +49,8 @@ Watch the messages live in lcm-spy (needs a display; run it, then this demo agai
   tools/lcm-spy.sh --url '$url'
 or as text without a display:
   $bin/evpipe-lcm-echo/evpipe-lcm-echo --url '$url' --text
+See what the pipeline sees (events, kept events, the model at the pose; the demo publishes the preview):
+  $bin/evpipe-view/evpipe-view --lcm-url '$url'         # a window; then this demo again in another terminal
+  $bin/evpipe/evpipe --replay $sample.aedat4 --camera $sample.camera.yaml --model $sample.model.yaml \
+    --prior $sample.prior.yaml --speed max --no-lcm --video build/release/demo.mp4   # every window as a video
 TXT

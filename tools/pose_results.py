@@ -17,7 +17,9 @@ Runs only evpipe's own binaries; no third-party Python package is needed:
                         [--work build/pose-results] [--jobs N] [--quick] [--keep-going]
                         [--config FILE] [--evpipe-arg ARG]... [--timeout S]
 
---quick: distance 0.8 m only, noise 0 and 5 Hz/px, raw and curvature (8 runs; a smoke run).
+--quick: distance 0.8 m only, noise 0 and 5 Hz/px, raw and curvature (8 runs; a smoke run), and a reduced set of
+the issue-21 sections (tools/pose_results_trust.py: standstill, slow, clutter, real, no prior).
+--skip-trust: only the standard sections (a)-(e).
 Exit status: 0 written; 1 a tool is missing or a run failed (every failure listed; with --keep-going the page
 is still written, failed cells marked); 2 usage.
 Deterministic apart from timings, given deterministic evpipe runs (seeded evsim scenes).
@@ -38,6 +40,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import pose_results_trust as trust
 from evpipe_tool_output import Failure, json_object, last_line
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -294,10 +297,11 @@ def section_scene_tables(results: dict, scenes: list[Scene], filters) -> list[st
         "",
         "ATE = |t_est − t_truth| over every published pose with ground truth (mm): RMSE, mean, median, std "
         "(population), max; rotation error = angle of R_truthᵀ R_est (deg). `tracking` = ATE RMSE over the poses "
-        "whose status is `tracking` (n/a when evpipe writes no status). Coverage = share of the truth's 3 s covered "
+        "whose status is `tracking` or `holding` (n/a when evpipe writes no status). Coverage = share of the truth's 3 s covered "
         "by poses at most 100 ms apart; first = sensor time from the start to the first pose (ms). init = evpipe's "
         "`pose_init_ms`, rate = `pose_rate_hz` (n/a until evpipe reports them); poses/s = rows of the poses CSV per "
-        "second of recording.",
+        "second of recording. wrong confident = `tracking`/`holding` poses more than 20 mm or 2° off "
+        "(`evpose-eval`; the issue wants 0).",
         "",
     ]
     for model in MODELS:
@@ -306,14 +310,14 @@ def section_scene_tables(results: dict, scenes: list[Scene], filters) -> list[st
             continue
         lines += [f"### {model.label} ({model.file})", "",
                   "| distance | noise Hz/px | filter | RMSE | mean | median | std | max | tracking | rot RMSE ° | rot max ° "
-                  "| coverage | first ms | init ms | rate Hz | poses/s |",
-                  "|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+                  "| coverage | first ms | init ms | rate Hz | poses/s | wrong confident |",
+                  "|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for s in ms:
             for label, *_ in filters:
                 res = results[(s, label)]
                 head = f"| {s.distance} | {s.noise:g} | {label} |"
                 if cell_failed(res):
-                    lines.append(head + " failed" + " |" * 13)
+                    lines.append(head + " failed" + " |" * 14)
                     continue
                 e = res["eval"]
                 summ = res["summary"]
@@ -326,6 +330,7 @@ def section_scene_tables(results: dict, scenes: list[Scene], filters) -> list[st
                         fmt(get(e, "rotation_deg", "rmse")), fmt(get(e, "rotation_deg", "max")),
                         pct(get(e, "time_coverage")), fmt(get(e, "first_pose_delay_ms"), 0),
                         fmt(first(summ, INIT_FIELDS), 1), fmt(first(summ, RATE_FIELDS), 0), f"{rows_per_s:.0f}",
+                        trust.wrong_cell(res),
                     ]) + " |")
         lines.append("")
     return lines
@@ -338,8 +343,9 @@ def section_matrix(results: dict, scenes: list[Scene], filters, noise_levels) ->
         "ATE RMSE (mm), mean over the scenes (both models, every distance) at each noise level; in brackets the worst "
         "scene. Rotation RMSE (deg) likewise.",
         "",
-        "| filter | " + " | ".join(f"{n:g} Hz/px" for n in noise_levels) + " | rotation RMSE ° (all) |",
-        "|---|" + "---:|" * (len(noise_levels) + 1),
+        "| filter | " + " | ".join(f"{n:g} Hz/px" for n in noise_levels) + " | rotation RMSE ° (all) "
+        "| wrong confident (all) |",
+        "|---|" + "---:|" * (len(noise_levels) + 2),
     ]
     for label, *_ in filters:
         cells = []
@@ -353,7 +359,9 @@ def section_matrix(results: dict, scenes: list[Scene], filters, noise_levels) ->
             if missing and have:
                 cell += f", {missing} n/a"
             cells.append(cell)
-        lines.append(f"| {label} | " + " | ".join(cells) + f" | {fmt(mean_or_none(rots))} |")
+        n_wrong, n_conf = trust.total_wrong([results[(s, label)] for s in scenes])
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {fmt(mean_or_none(rots))} | "
+                     f"{'**' + str(n_wrong) + '**' if n_wrong else 0} of {n_conf} |")
     lines.append("")
     return lines
 
@@ -468,6 +476,7 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--quick", action="store_true", help="0.8 m, 0 and 5 Hz/px, raw and curvature only")
     ap.add_argument("--keep-going", action="store_true", help="write the page even when some runs failed")
+    ap.add_argument("--skip-trust", action="store_true", help="leave out the issue-21 sections (f)-(k)")
     ap.add_argument("--config", help="evpipe --config FILE for every run (pose-stage parameters)")
     ap.add_argument("--evpipe-arg", action="append", default=[], help="extra evpipe argument (repeatable)")
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per program run")
@@ -524,6 +533,42 @@ def main() -> None:
         fail_exit(f"{len(ctx.failures)} of {len(results)} runs failed (rerun with --keep-going to write the page "
                   "anyway):\n" + "\n".join(ctx.failures))
 
+    # 2b. The issue-21 sections: standstill, slow, clutter, real, no prior (tools/pose_results_trust.py).
+    trust_sections = {}
+    trust_note = None
+    if not a.skip_trust:
+        t_trust = time.time()
+        env = trust.Env(ctx.evsim, ctx.evpipe, ctx.evpose_eval, ctx.work, ctx.scenes_dir, ctx.timeout, ctx.config,
+                        ctx.evpipe_args, run, lambda jobs: parallel(ctx, jobs),
+                        lambda path, label, params: run_config(ctx, path, label, params))
+        tscenes, trust_sections, tfilters = trust.plan(a.quick, env)
+        made = parallel(ctx, [(trust.make_sim_scene, env, s) for s in tscenes])
+        bad = [m["failure"] for m in made if isinstance(m, dict)]
+        if bad:
+            fail_exit("scene generation failed:\n" + "\n".join(bad))
+        trust_sections["real"], trust_note = trust.real_runs(FILTERS, a.quick)
+        # No prior: the standard scenes at 0.8 m (all of this run's noise levels), without --prior.
+        for s in scenes:
+            if s.distance != 0.8:
+                continue
+            ev = paths[s]
+            for label, d, p in tfilters:
+                trust_sections["noprior"].append(
+                    ({"scene": s.name, "filter": label},
+                     trust.Run(f"{s.name}.noprior.{label}", ev, ev.with_suffix(".camera.yaml"),
+                               ev.with_suffix(".model.yaml"), None, ev.with_suffix(".gt.csv"), d, p)))
+        flat = [(name, i) for name, rows in trust_sections.items() for i in range(len(rows))]
+        outs = parallel(ctx, [(trust.do_run, env, trust_sections[name][i][1]) for name, i in flat])
+        for (name, i), res in zip(flat, outs):
+            trust_sections[name][i] = (trust_sections[name][i][0], res)
+            if cell_failed(res):
+                ctx.failures.append(res["failure"])
+        print(f"{PROG}: issue-21 sections: {len(tscenes)} scenes, {len(flat)} runs in {time.time() - t_trust:.0f} s",
+              file=sys.stderr)
+        if ctx.failures and not a.keep_going:
+            fail_exit(f"{len(ctx.failures)} runs failed (rerun with --keep-going to write the page anyway):\n"
+                      + "\n".join(ctx.failures))
+
     # 3. The page.
     out = Path(a.out)
     version = last_line(run([ctx.evpipe, "--version"]).stdout) or "unknown"
@@ -555,13 +600,20 @@ def main() -> None:
     doc += section_table6(results, scenes)
     doc += section_acceptance(results, scenes, a.quick)
     doc += section_figures(ctx, results, scenes, Path(a.img_dir), out)
+    if trust_sections:
+        doc += trust.section_standstill(trust_sections["standstill"])
+        doc += trust.section_slow(trust_sections["slow"])
+        doc += trust.section_clutter(trust_sections["clutter"])
+        doc += trust.section_real(trust_sections["real"], trust_note)
+        doc += trust.section_noprior(trust_sections["noprior"])
+        doc += trust.section_summary({"standard (a)": [(None, r) for r in results.values()], **trust_sections})
     if ctx.failures:
         doc += ["## Failed runs", ""] + [f"* `{f.splitlines()[0]}`" for f in ctx.failures] + [""]
     doc.append(f"_Run took {time.time() - t0:.0f} s with {a.jobs} jobs; {version}, commit {git_describe()}, build "
                f"`{build.name}`._")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(doc) + "\n")
-    print(f"wrote {out}")
+    print(f"wrote {out} in {time.time() - t0:.0f} s")
     if ctx.failures:
         sys.exit(1)
 

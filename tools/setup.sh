@@ -20,6 +20,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # operations checks (systemd-analyze verify, multicast route on lo)
   systemd iproute2
+  # evpipe-view's end-to-end test and the docs screenshot (a virtual X display)
+  xvfb
   # handy for fixtures and benches
   lz4 zstd
 )

@@ -28,9 +28,11 @@
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/error.hpp"
+#include "evpipe/camera/line_model.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/config/run_config.hpp"
 #include "evpipe/core/error.hpp"
+#include "evpipe/core/file.hpp"
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/metrics/trajectory.hpp"
@@ -43,6 +45,7 @@
 #include "evpipe/transport/lcm_url.hpp"
 #include "live.hpp"
 #include "pose_stage.hpp"
+#include "preview.hpp"
 #include "progress.hpp"
 #include "sink.hpp"
 #include "summary.hpp"
@@ -82,6 +85,13 @@ struct Cli {
   bool json = false;
   bool no_progress = false;
   bool print_config = false;
+  // The operator's view (issue 22, preview.hpp)
+  bool preview = false;
+  std::optional<double> preview_hz;
+  std::string video;
+  double video_fps = 0;
+  int png_every = 0;
+  std::string png_dir = ".";
 };
 
 evpipe::io::ReaderOptions reader_options(const evpipe::config::SourceConfig& s) {
@@ -127,6 +137,11 @@ int run(const Cli& cli) {
     if (!cli.denoise.empty()) cfg.denoise.filter = cli.denoise;
     if (cli.lcm_url) cfg.lcm.url = *cli.lcm_url;
     if (cli.no_lcm) cfg.lcm.enabled = false;
+    if (cli.preview) cfg.lcm.preview = true;
+    if (cli.preview_hz) {
+      cfg.lcm.preview = true;
+      cfg.lcm.preview_hz = *cli.preview_hz;
+    }
     cfg.validate();
     if (!cfg.pose.ground_truth.empty() && cfg.source.replay.empty())
       throw config::ConfigError("pose.ground_truth (--ground-truth): only for a replay (--replay)");
@@ -210,6 +225,30 @@ int run(const Cli& cli) {
       return 2;
     }
   }
+  // The preview (LCM preview_t, --video, --png-every) sees the raw events through this wrapper (preview.hpp).
+  bool preview_lcm = cfg.lcm.preview && cfg.lcm.enabled;
+  if (cfg.lcm.preview && !cfg.lcm.enabled) spdlog::warn("LCM preview: off, because LCM is off (--no-lcm, lcm.enabled)");
+  if (transport::LcmUrl u; preview_lcm &&
+                           !transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true, &u) &&
+                           u.provider == "file") {
+    // The publisher writes that log; a second writer would clobber it (and a log is no place for pictures).
+    spdlog::warn("LCM preview: off, because lcm.url is an LCM log file (watch a live run over udpm instead)");
+    preview_lcm = false;
+  }
+  if (!cli.video.empty()) {
+    try {
+      check_output_file(cli.video, inputs);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evpipe: configuration error: --video: %s\n", e.what());
+      return 2;
+    }
+  }
+  app::RawTap* tap = nullptr;
+  if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
+    auto t = std::make_unique<app::RawTap>(std::move(source));
+    tap = t.get();
+    source = std::move(t);
+  }
   // Built once the source knows the sensor size; parameter errors are configuration errors.
   std::unique_ptr<denoise::Filter> filter;
   if (cfg.denoise.filter != "none") {
@@ -268,8 +307,36 @@ int run(const Cli& cli) {
                            ? cfg.denoise.threads
                            : std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 4);
   spdlog::debug("denoise: {} thread(s)", po.denoise_threads);
-  app::PoseProcessor processor(pose_stage.get());
   app::AppSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
+  std::unique_ptr<app::PreviewWorker> preview;
+  if (tap) {
+    app::PreviewOptions vo;
+    vo.hz = cfg.lcm.preview_hz;
+    vo.lcm = preview_lcm;
+    vo.lcm_url = cfg.lcm.url;
+    vo.lcm_channel = cfg.lcm.preview_channel;
+    vo.video = cli.video;
+    vo.video_fps = cli.video_fps;
+    vo.png_every = cli.png_every;
+    vo.png_dir = cli.png_dir;
+    vo.lossless = !live;  // a replay's video / stills have every window
+    std::optional<camera::CameraModel> cam;
+    std::optional<camera::LineModel> model;
+    if (pose_stage) {  // loaded once more for the drawing (create() has checked them)
+      cam = camera::load_camera(cfg.pose.camera);
+      model = camera::load_line_model(cfg.pose.model);
+    }
+    try {
+      preview = std::make_unique<app::PreviewWorker>(vo, tap, tap->info().geometry, cfg.window.hop_us, std::move(cam),
+                                                     std::move(model), &sink);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evpipe: preview: %s\n", e.what());
+      return 1;
+    }
+    sink.set_preview(preview.get());
+    if (preview_lcm) spdlog::info("LCM preview: {} Hz on {}", cfg.lcm.preview_hz, cfg.lcm.preview_channel);
+  }
+  app::PoseProcessor processor(pose_stage.get(), preview.get());
   pipeline::Pipeline pipe(std::move(source), std::move(filter), processor, sink, po);
 
   g_paced.store(paced);
@@ -320,6 +387,25 @@ int run(const Cli& cli) {
   g_pipeline.store(nullptr);
   progress.finish();
 
+  std::string preview_error;
+  if (preview) {
+    try {
+      preview->finish();
+    } catch (const std::exception& e) {
+      preview_error = fmt::format("preview: {}", e.what());
+    }
+    const auto c = preview->counters();
+    if (preview_lcm) {
+      spdlog::info("LCM preview: {} published ({:.1f} kB each on average), {} dropped, {} failed", c.published,
+                   c.published ? static_cast<double>(c.bytes) / static_cast<double>(c.published) / 1e3 : 0.0, c.dropped,
+                   c.publish_failures);
+    }
+    if (!cli.video.empty())
+      spdlog::info("video: {} frames of {}x{} ({}) written to {}", c.video_frames, c.video_width, c.video_height,
+                   c.video_codec, c.video_path);
+    if (cli.png_every > 0) spdlog::info("png: {} stills written to {}", c.pngs, cli.png_dir);
+  }
+
   const auto stats = pipe.stats();
   summary.stream = &pipe.stream_stats();
   summary.interrupted = g_stop.load();
@@ -355,6 +441,10 @@ int run(const Cli& cli) {
   if (const auto err = pipe.error()) {
     summary.error = *err;
     spdlog::error("{}", *err);
+    status = 1;
+  } else if (!preview_error.empty()) {
+    summary.error = preview_error;
+    spdlog::error("{}", preview_error);
     status = 1;
   }
   if (status == 0 && publisher && publisher->writes_log() && summary.lcm_failures > 0 && summary.lcm_poses == 0 &&
@@ -403,6 +493,16 @@ int main(int argc, char** argv) {
       "key are in config/evpipe.yaml.",
       evpipe::kMaxSensorSide, evpipe::denoise::kMaxFilterBytesPerPixel, evpipe::denoise::kMaxFilterStateBytes >> 20,
       evpipe::config::kMinSpeed, evpipe::config::kMaxSpeed));
+  app.add_flag("--preview", cli.preview, "Publish a preview for evpipe-view on EVPIPE_PREVIEW (lcm.preview)");
+  app.add_option("--preview-hz", cli.preview_hz, "Previews per second (implies --preview; lcm.preview_hz, default 10)")
+      ->check(CLI::Range(0.1, 30.0));
+  app.add_option("--video", cli.video,
+                 "Write the preview of every window to this video (.mp4: MPEG-4 via FFmpeg; .avi: Motion JPEG)");
+  app.add_option("--video-fps", cli.video_fps, "Video frame rate (default: sensor time, 1 / window.hop_us)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--png-every", cli.png_every, "Write every Nth window's preview as PNG (to --png-dir)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--png-dir", cli.png_dir, "Folder for --png-every stills (default: .)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

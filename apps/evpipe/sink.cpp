@@ -3,15 +3,21 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "preview.hpp"
+
 namespace evpipe::app {
 
 pose::PoseEstimate PoseProcessor::process(const EventWindow& window) {
-  if (stage_) return stage_->process(window);
-  pose::PoseEstimate none;
-  none.t_us = window.t1_us;
-  none.window_events = window.size();
-  none.note = "no pose stage (no --camera/--model)";
-  return none;
+  pose::PoseEstimate estimate;
+  if (stage_) {
+    estimate = stage_->process(window);
+  } else {
+    estimate.t_us = window.t1_us;
+    estimate.window_events = window.size();
+    estimate.note = "no pose stage (no --camera/--model)";
+  }
+  if (preview_) preview_->offer(window, estimate);  // never waits, except for a replay's --video
+  return estimate;
 }
 
 AppSink::AppSink(transport::LcmPublisher* publisher, PoseStage* stage, bool live, bool keep_for_ate)
@@ -52,6 +58,9 @@ void AppSink::publish_pose(const pipeline::PoseSample& sample) {
     r.newest_event_arrival = sample.newest_event_read;
     publisher_->publish_pose(r);
   }
+  if (preview_)
+    preview_->note_published(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(pipeline::Clock::now() - sample.window_ready).count());
   ++poses_;
   const std::lock_guard lock(mutex_);
   latest_status_ = e.status;

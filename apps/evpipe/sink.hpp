@@ -17,14 +17,18 @@
 
 namespace evpipe::app {
 
+class PreviewWorker;
+
 /// Runs the pose stage on each window; without a pose stage every window gives an estimate that says so.
+/// With a preview worker (--preview, --video), each window and its estimate are offered to it (preview.hpp).
 class PoseProcessor final : public pipeline::WindowProcessor {
  public:
-  explicit PoseProcessor(PoseStage* stage) : stage_(stage) {}
+  explicit PoseProcessor(PoseStage* stage, PreviewWorker* preview = nullptr) : stage_(stage), preview_(preview) {}
   pose::PoseEstimate process(const EventWindow& window) override;
 
  private:
   PoseStage* stage_;
+  PreviewWorker* preview_;
 };
 
 class AppSink final : public pipeline::PoseSink {
@@ -34,6 +38,8 @@ class AppSink final : public pipeline::PoseSink {
   AppSink(transport::LcmPublisher* publisher, PoseStage* stage, bool live, bool keep_for_ate);
 
   void publish_pose(const pipeline::PoseSample& sample) override;
+  /// Tells the preview worker each published pose's window -> LCM latency (set before the pipeline starts).
+  void set_preview(PreviewWorker* preview) noexcept { preview_ = preview; }
   void publish_stats(const pipeline::PipelineStats& stats) override;
 
   /// Any thread: the latest statistics and the status of the latest pose.
@@ -46,6 +52,7 @@ class AppSink final : public pipeline::PoseSink {
  private:
   transport::LcmPublisher* publisher_;
   PoseStage* stage_;
+  PreviewWorker* preview_ = nullptr;
   bool live_;
   bool keep_for_ate_;
   std::vector<camera::StampedPose> valid_poses_;

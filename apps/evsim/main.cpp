@@ -34,6 +34,7 @@
 #include "evpipe/camera/yaml_writer.hpp"
 #include "evpipe/core/file.hpp"
 #include "evpipe/io/writer.hpp"
+#include "evpipe/sim/distractors.hpp"
 #include "evpipe/sim/noise.hpp"
 #include "evpipe/sim/recording.hpp"
 #include "evpipe/sim/scene2d.hpp"
@@ -97,6 +98,9 @@ struct Config {
   double prior_offset_deg = 10.0;
   double prior_position_tolerance_m = 0.3;
   double prior_angle_tolerance_deg = 45.0;
+  std::vector<std::string> stop_text;        // --stop AT_S:FOR_S, parsed into motion.stops
+  std::vector<std::string> distractor_text;  // --distractor KIND
+  sim::FlickerOptions flicker;
 };
 
 enum class Mode { pure_noise, scene2d, target3d };
@@ -119,7 +123,40 @@ std::mt19937_64 stream(std::uint64_t seed, std::uint32_t id) {
   std::seed_seq seq{static_cast<std::uint32_t>(seed), static_cast<std::uint32_t>(seed >> 32), id};
   return std::mt19937_64(seq);
 }
-enum StreamId : std::uint32_t { kMotionStream = 1, kSignalStream = 2, kNoiseStream = 3, kPriorStream = 4 };
+enum StreamId : std::uint32_t {
+  kMotionStream = 1,
+  kSignalStream = 2,
+  kNoiseStream = 3,
+  kPriorStream = 4,
+  kDistractorMotionStream = 5,
+  kDistractorSignalStream = 6,
+  kFlickerStream = 7
+};
+
+/// --stop AT_S:FOR_S cells (CLI11 already split comma lists) into sorted, checked stops.
+std::vector<sim::MotionStop> parse_stops(const std::vector<std::string>& cells, double ramp_s) {
+  std::vector<sim::MotionStop> stops;
+  for (const auto& cell : cells) {
+    const auto colon = cell.find(':');
+    double v[2] = {0, 0};
+    bool ok = colon != std::string::npos;
+    for (int i = 0; ok && i < 2; ++i) {
+      const std::string part = i == 0 ? cell.substr(0, colon) : cell.substr(colon + 1);
+      const auto [ptr, ec] = std::from_chars(part.data(), part.data() + part.size(), v[i]);
+      ok = !part.empty() && ec == std::errc{} && ptr == part.data() + part.size() && std::isfinite(v[i]) && v[i] >= 0;
+    }
+    if (!ok) throw UsageError(fmt::format("--stop '{}': expected AT_S:FOR_S (two non-negative numbers)", cell));
+    stops.push_back({v[0], v[1]});
+  }
+  std::sort(stops.begin(), stops.end(), [](const auto& a, const auto& b) { return a.at_s < b.at_s; });
+  try {
+    (void)sim::motion_time_s(0.0, stops, ramp_s);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(
+        fmt::format("--stop: {} (each stop needs --stop-ramp-s {} s free before and after it)", e.what(), ramp_s));
+  }
+  return stops;
+}
 
 Eigen::Quaterniond parse_orientation(const std::string& text) {
   std::vector<double> v;
@@ -282,6 +319,18 @@ int run(Config& c) {
     throw UsageError("--camera and --trajectory need --model (a 3D target scene)");
   }
   if (mode != Mode::target3d && c.png_model) throw UsageError("--png-model needs --model (a 3D target scene)");
+  if (mode != Mode::target3d && (!c.stop_text.empty() || !c.distractor_text.empty())) {
+    throw UsageError("--stop and --distractor need --model (a 3D target scene)");
+  }
+  c.motion.stops = parse_stops(c.stop_text, c.motion.stop_ramp_s);
+  std::vector<sim::DistractorKind> distractors;
+  for (const auto& d : c.distractor_text) {
+    try {
+      distractors.push_back(sim::distractor_kind(d));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(fmt::format("--distractor: {}", e.what()));
+    }
+  }
   if (c.edge.threshold_log <= 0 || c.edge.contrast_log < c.edge.threshold_log) {
     throw UsageError(fmt::format("--contrast ({}) must be >= --threshold ({}) > 0 (no events otherwise)",
                                  c.edge.contrast_log, c.edge.threshold_log));
@@ -306,7 +355,8 @@ int run(Config& c) {
   std::int64_t t1_us = t0_us + static_cast<std::int64_t>(std::llround(c.duration_ms * 1000.0));
   std::vector<Event> signal;
   std::vector<Event> noise;
-  std::vector<std::pair<std::string, std::string>> files;  // role, path
+  std::vector<std::pair<std::string, std::size_t>> distractor_counts;  // kind, events
+  std::vector<std::pair<std::string, std::string>> files;              // role, path
   Manifest m;
   m.comment("evsim manifest: how this recording was made. The same evsim version, arguments and seed give");
   m.comment("identical bytes in every file (docs/simulation.md). Times in microseconds; the events lie in");
@@ -394,6 +444,33 @@ int run(Config& c) {
 
     auto signal_rng = stream(c.seed, kSignalStream);
     signal = sim::render_target(scene, t0_us, t1_us, signal_rng);
+    // Distractors: their own streams, so the target's events are the same with and without them.
+    if (!distractors.empty()) {
+      auto motion_rng = stream(c.seed, kDistractorMotionStream);
+      auto body_rng = stream(c.seed, kDistractorSignalStream);
+      auto flicker_rng = stream(c.seed, kFlickerStream);
+      const int levels = std::max(1, static_cast<int>(std::floor(c.edge.contrast_log / c.edge.threshold_log + 1e-9)));
+      for (const auto kind : distractors) {
+        std::vector<Event> ev;
+        if (kind == sim::DistractorKind::flicker) {
+          const auto patch =
+              sim::flicker_patch(scene.camera, scene.model, scene.trajectory.front().pose, c.flicker.size_px);
+          ev = sim::flicker_events(patch, t0_us, t1_us, c.flicker, levels, c.edge.jitter_us, flicker_rng);
+        } else {
+          const auto body =
+              sim::make_distractor_body(kind, scene.camera, scene.model, scene.trajectory, c.motion, motion_rng);
+          sim::TargetScene ds;
+          ds.camera = scene.camera;
+          ds.model = body.model;
+          ds.trajectory = body.trajectory;
+          ds.edge = scene.edge;
+          ev = sim::render_target(ds, t0_us, t1_us, body_rng);
+        }
+        distractor_counts.emplace_back(sim::to_string(kind), ev.size());
+        signal.insert(signal.end(), ev.begin(), ev.end());
+      }
+      std::stable_sort(signal.begin(), signal.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    }
     auto noise_rng = stream(c.seed, kNoiseStream);
     noise = sim::background_activity(g, t0_us, t1_us, c.noise, noise_rng);
 
@@ -471,6 +548,27 @@ int run(Config& c) {
       m.num("max_angular_speed_deg_s", c.motion.max_angular_speed_deg_s);
       m.num("min_freq_hz", c.motion.min_freq_hz);
       m.num("max_freq_hz", c.motion.max_freq_hz);
+      if (!c.motion.stops.empty()) {
+        std::vector<double> at, dur;
+        for (const auto& st : c.motion.stops) {
+          at.push_back(st.at_s);
+          dur.push_back(st.for_s);
+        }
+        m.list("stops_at_s", at);
+        m.list("stops_for_s", dur);
+        m.num("stop_ramp_s", c.motion.stop_ramp_s);
+      }
+    }
+    if (!distractor_counts.empty()) {
+      m.comment("distractors: real scene edges that are not the target, labelled signal (1); the ground truth is");
+      m.comment("the target's only");
+      m.section("distractors");
+      for (const auto& [kind, n] : distractor_counts) m.integer(kind, static_cast<long long>(n));
+      m.num("flicker_hz", c.flicker.rate_hz);
+      m.integer("flicker_size_px", c.flicker.size_px);
+      m.integer("motion_stream", kDistractorMotionStream);
+      m.integer("signal_stream", kDistractorSignalStream);
+      m.integer("flicker_stream", kFlickerStream);
     }
     m.section("edge");
     m.num("contrast_log", c.edge.contrast_log);
@@ -598,6 +696,22 @@ int main(int argc, char** argv) {
       app.add_option("--min-freq-hz", c.motion.min_freq_hz, "3D motion: lowest frequency")->check(CLI::PositiveNumber));
   motion_opts.push_back(app.add_option("--max-freq-hz", c.motion.max_freq_hz, "3D motion: highest frequency")
                             ->check(CLI::PositiveNumber));
+  auto* stop = app.add_option("--stop", c.stop_text,
+                              "3D motion: stand still from AT_S for FOR_S seconds, AT_S:FOR_S (repeatable or "
+                              "comma-separated); the motion pauses and continues where it stopped")
+                   ->delimiter(',');
+  motion_opts.push_back(stop);
+  motion_opts.push_back(app.add_option("--stop-ramp-s", c.motion.stop_ramp_s,
+                                       "3D motion: slowing down before / speeding up after each stop (s)")
+                            ->check(CLI::NonNegativeNumber));
+  app.add_option("--distractor", c.distractor_text,
+                 "3D clutter (repeatable or comma-separated): lines, moving-lines, decoy, decoy-static, flicker "
+                 "(docs/simulation.md); its events are labelled signal, the ground truth is the target's")
+      ->delimiter(',');
+  app.add_option("--flicker-hz", c.flicker.rate_hz, "3D clutter: flicker cycles per second")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--flicker-size-px", c.flicker.size_px, "3D clutter: side of the flicker patch (px)")
+      ->check(CLI::Range(1, 100));
   app.add_option("--gt-rate-hz", c.motion.rate_hz, "3D: ground-truth rows per second (>= 1000)");
   app.add_option("--contrast", c.edge.contrast_log, "3D edges: log-intensity step across an edge")
       ->check(CLI::PositiveNumber);

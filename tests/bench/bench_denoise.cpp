@@ -5,6 +5,8 @@
 //              (5.1 M events, 8.2 s); not registered when the file is absent.
 //   synthetic: 346×260, 2 Hz/px uniform background activity plus four tilted bars sweeping at 400 px/s
 //              (≈ 4.7 M events, 24 % noise, 6.3 s), generated at start-up with libs/sim (a few seconds).
+//   synth10:   bench_curvature's 10 Mev/s stream (12 rotating bars with exact edge times plus 5 Hz/px background
+//              activity, 0.3 s), for the pipeline default's 12 Mev/s goal (issue 18).
 //   build-rel/tests/bench/bench_denoise [--benchmark_filter=knoise] [--benchmark_repetitions=3]
 // tools/bench_denoise_vs_dv.py compares with dv-processing in one run on the same events.
 
@@ -21,7 +23,9 @@
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/sim/noise.hpp"
+#include "evpipe/sim/recording.hpp"
 #include "evpipe/sim/scene2d.hpp"
+#include "rotating_bars.hpp"
 
 namespace {
 
@@ -99,6 +103,20 @@ Dataset synthetic() {
   return d;
 }
 
+/// bench_curvature's synth10: 12 rotating bars at ≈ 9.5 Mev/s plus 5 Hz/px noise, 0.3 s.
+Dataset synth10() {
+  Dataset d;
+  d.name = "synth10";
+  d.geometry = kDavis346;
+  const auto signal = testing::rotating_bar_events(testing::bar_grid(230.0), kDavis346, 0, 300'000);
+  std::mt19937_64 rng(7);
+  sim::NoiseOptions no;
+  no.rate_hz_per_pixel = 5.0;
+  const auto noise = sim::background_activity(kDavis346, 0, 300'000, no, rng);
+  d.events = sim::merge_labelled(signal, noise).events;
+  return d;
+}
+
 void run(benchmark::State& state, const Dataset* d, const std::string& filter, const Settings& settings) {
   std::size_t kept = 0;
   for (auto _ : state) {
@@ -126,18 +144,19 @@ void run(benchmark::State& state, const Dataset* d, const std::string& filter, c
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   static std::vector<Dataset> datasets;
-  datasets.reserve(2);
+  datasets.reserve(3);
   Dataset real;
   if (load_real(real)) {
     datasets.push_back(std::move(real));
   }
   datasets.push_back(synthetic());
+  datasets.push_back(synth10());
   const std::vector<std::pair<std::string, Settings>> filters = {
       {"baf", {}},      {"baf", {{"duration_us", "10000"}}},
       {"knoise", {}},   {"knoise", {{"variant", "cuke"}}},
       {"ynoise", {}},   {"stcf", {}},
       {"dwf", {}},      {"dwf", {{"variant", "jaer"}}},
-      {"hotpixel", {}},
+      {"hotpixel", {}}, {"significance", {}},
   };
   for (const Dataset& d : datasets) {
     std::fprintf(stderr, "bench_denoise: %s: %zu events, %.2f s\n", d.name.c_str(), d.events.size(),

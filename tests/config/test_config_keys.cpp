@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "evpipe/config/run_config.hpp"
 
@@ -147,6 +148,14 @@ TEST(ConfigKeys, StringsChoicesAndBooleans) {
         for (const char* v : {"true", "false", "yes", "no", "on", "off"}) expect_ok(doc_with(k.path, v));
         for (const char* v : {"1", "maybe", "''", "truee"})
           expect_error(doc_with(k.path, v), k.path, 3, "true or false");
+        break;
+      case KeyInfo::Type::real:
+        expect_ok(doc_with(k.path, std::to_string(k.min_real)));
+        expect_ok(doc_with(k.path, std::to_string(k.max_real)));
+        for (const std::string& v :
+             std::vector<std::string>{std::to_string(k.min_real * 0.99), std::to_string(k.max_real * 1.01),
+                                      std::string(".nan"), ".inf", "nan", "abc", "''", "1e999"})
+          expect_error(doc_with(k.path, v), k.path, 3, "must be a number in");
         break;
       default:
         break;

@@ -69,7 +69,7 @@ TEST(RunConfig, DenoiseSectionKeepsParamsInOrder) {
   EXPECT_EQ(c.denoise.params[0], (std::pair<std::string, std::string>{"curvature.mode", "causal"}));
   EXPECT_EQ(c.denoise.params[1], (std::pair<std::string, std::string>{"radius", "3"}));
   EXPECT_EQ(parse_config(c.to_yaml()).to_yaml(), c.to_yaml());
-  EXPECT_EQ(parse_config("").denoise.filter, "curvature");
+  EXPECT_EQ(parse_config("").denoise.filter, "significance");
   EXPECT_NE(error_of("denoise: {params: [1, 2]}").find("t.yaml: line 1: denoise.params: expected a map"),
             std::string::npos);
   EXPECT_NE(error_of("denoise: {filter: ''}").find("denoise.filter"), std::string::npos);
@@ -79,8 +79,11 @@ TEST(RunConfig, DenoiseSectionKeepsParamsInOrder) {
 TEST(RunConfig, PipelineFilterParamsAddEvpipesCurvatureDefaultsWhereUnset) {
   using Params = std::vector<std::pair<std::string, std::string>>;
   const auto params_of = [](const std::string& yaml) { return parse_config(yaml).denoise.pipeline_params(); };
-  // The default filter alone: singular keep, and the adaptive threshold capped at the paper's 5.
-  EXPECT_EQ(params_of(""), (Params{{"singular", "keep"}, {"adaptive", "true"}, {"adaptive_max_threshold", "5"}}));
+  // The default filter (significance) gets nothing added.
+  EXPECT_EQ(params_of(""), Params{});
+  // curvature alone: singular keep, and the adaptive threshold capped at the paper's 5.
+  EXPECT_EQ(params_of("denoise: {filter: curvature}"),
+            (Params{{"singular", "keep"}, {"adaptive", "true"}, {"adaptive_max_threshold", "5"}}));
   // In a chain, prefixed; the user's own keys come first and are kept.
   EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,curvature', params: {hotpixel.ratio: 9}}"),
             (Params{{"hotpixel.ratio", "9"},
@@ -88,20 +91,21 @@ TEST(RunConfig, PipelineFilterParamsAddEvpipesCurvatureDefaultsWhereUnset) {
                     {"curvature.adaptive", "true"},
                     {"curvature.adaptive_max_threshold", "5"}}));
   // Any threshold choice of the user's stands as given (a fixed threshold stays fixed).
-  EXPECT_EQ(params_of("denoise: {params: {density_threshold: 6}}"),
+  EXPECT_EQ(params_of("denoise: {filter: curvature, params: {density_threshold: 6}}"),
             (Params{{"density_threshold", "6"}, {"singular", "keep"}}));
-  EXPECT_EQ(params_of("denoise: {params: {adaptive: false, singular: reject}}"),
+  EXPECT_EQ(params_of("denoise: {filter: curvature, params: {adaptive: false, singular: reject}}"),
             (Params{{"adaptive", "false"}, {"singular", "reject"}}));
   // A cap of the user's (0 = none) keeps adaptive on; adaptive set alone gets the cap; adaptive off gets none.
-  EXPECT_EQ(params_of("denoise: {params: {curvature.adaptive_max_threshold: 0}}"),
+  EXPECT_EQ(params_of("denoise: {filter: curvature, params: {curvature.adaptive_max_threshold: 0}}"),
             (Params{{"curvature.adaptive_max_threshold", "0"}, {"singular", "keep"}, {"adaptive", "true"}}));
-  EXPECT_EQ(params_of("denoise: {params: {adaptive_max_threshold: 7}}"),
+  EXPECT_EQ(params_of("denoise: {filter: curvature, params: {adaptive_max_threshold: 7}}"),
             (Params{{"adaptive_max_threshold", "7"}, {"singular", "keep"}, {"adaptive", "true"}}));
   EXPECT_EQ(
       params_of("denoise: {filter: 'hotpixel,curvature', params: {curvature.adaptive: true}}"),
       (Params{
           {"curvature.adaptive", "true"}, {"curvature.singular", "keep"}, {"curvature.adaptive_max_threshold", "5"}}));
-  EXPECT_EQ(params_of("denoise: {params: {adaptive: off}}"), (Params{{"adaptive", "off"}, {"singular", "keep"}}));
+  EXPECT_EQ(params_of("denoise: {filter: curvature, params: {adaptive: off}}"),
+            (Params{{"adaptive", "off"}, {"singular", "keep"}}));
   // A bare key in a chain goes to the one filter that has it (curvature): it counts as set.
   EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,curvature', params: {singular: reject, density_threshold: 4}}"),
             (Params{{"singular", "reject"}, {"density_threshold", "4"}}));
@@ -163,4 +167,19 @@ TEST(RunConfig, DenoiseThreads) {
             std::string::npos);
   EXPECT_NE(error_of("denoise: {threads: many}").find("denoise.threads: expected a number or 'auto', got 'many'"),
             std::string::npos);
+}
+
+TEST(RunConfig, LcmPreviewKeys) {  // issue 22: off by default, 10 Hz when on
+  const evpipe::config::RunConfig defaults;
+  EXPECT_FALSE(defaults.lcm.preview);
+  EXPECT_DOUBLE_EQ(defaults.lcm.preview_hz, 10.0);
+  EXPECT_EQ(defaults.lcm.preview_channel, "EVPIPE_PREVIEW");
+  const auto c = parse_config("lcm: {preview: true, preview_hz: 2.5, preview_channel: VIEW}\n");
+  EXPECT_TRUE(c.lcm.preview);
+  EXPECT_DOUBLE_EQ(c.lcm.preview_hz, 2.5);
+  EXPECT_EQ(c.lcm.preview_channel, "VIEW");
+  EXPECT_EQ(parse_config(c.to_yaml()).to_yaml(), c.to_yaml());
+  EXPECT_NE(error_of("lcm: {preview_hz: 100}").find("lcm.preview_hz: must be a number in [0.1, 30]"),
+            std::string::npos);
+  EXPECT_NE(error_of("lcm: {preview_channel: ''}").find("lcm.preview_channel: must not be empty"), std::string::npos);
 }

@@ -1,6 +1,7 @@
 // End-to-end: the real evpipe / evconvert / evsim binaries on recorded files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -8,6 +9,7 @@
 #include <fstream>
 #include <map>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "evpipe/camera/camera_model.hpp"
@@ -50,8 +52,9 @@ TEST(Evpipe, ReplaysTheBundledSample) {
   EXPECT_EQ(json_field(r.out, "last_t_us"), std::to_string(expected.events.back().t_us));
   EXPECT_EQ(json_field(r.out, "out_of_order"), "0");
   EXPECT_EQ(json_field(r.out, "error"), "");
-  // The paper's filter by default; 30 ms fixed windows over a 1.5 s recording: each kept event in exactly one.
-  EXPECT_EQ(json_field(r.out, "denoise_filter"), "curvature");
+  // evpipe's significance filter by default; 30 ms fixed windows over a 1.5 s recording: each kept event in exactly
+  // one.
+  EXPECT_EQ(json_field(r.out, "denoise_filter"), "significance");
   EXPECT_EQ(json_field(r.out, "denoise_in"), std::to_string(expected.events.size()));
   const auto kept = std::stoull(json_field(r.out, "denoise_kept"));
   EXPECT_GT(kept, expected.events.size() / 4);
@@ -418,6 +421,51 @@ TEST(Evsim, UsageErrorsExitTwo) {
   r = run(kEvsim + " --camera " + q(config("davis346.yaml")) + " --model " + q(bad) + out);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("model.units"), std::string::npos) << r.err;
+}
+
+TEST(Evsim, DistractorsAddEventsAndKeepTheTargetsStopsHoldTheTruth) {
+  // Distractors draw from their own random streams: the target's events and ground truth are the same with and
+  // without them, and the distractor events come on top, labelled signal.
+  const auto dir = evpipe::testing::temp_dir("e2e-sim-clutter");
+  const auto lines_of = [](const fs::path& p) {
+    std::multiset<std::string> out;
+    std::ifstream f(p);
+    for (std::string ln; std::getline(f, ln);)
+      if (!ln.empty() && ln[0] != '#') out.insert(ln);
+    return out;
+  };
+  const std::string plain = (dir / "plain.txt").string();
+  const std::string clutter = (dir / "clutter.txt").string();
+  ASSERT_EQ(run(kEvsim + k3dArgs + " --seed 3 --out " + q(plain)).status, 0);
+  auto r = run(kEvsim + k3dArgs + " --seed 3 --distractor decoy,flicker --distractor moving-lines --out " + q(clutter));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto a = lines_of(plain);
+  const auto b = lines_of(clutter);
+  EXPECT_GT(b.size(), a.size() + 1000);
+  EXPECT_TRUE(std::includes(b.begin(), b.end(), a.begin(), a.end()));
+  EXPECT_TRUE(slurp(dir / "plain.gt.csv") == slurp(dir / "clutter.gt.csv"));
+  const std::string manifest = slurp(dir / "clutter.manifest.yaml");
+  EXPECT_NE(manifest.find("distractors:"), std::string::npos);
+  EXPECT_NE(manifest.find("  flicker: "), std::string::npos);
+
+  // A stop: the truth rows inside it are all the same pose.
+  const std::string stop = (dir / "stop.txt").string();
+  r = run(kEvsim + k3dArgs + " --seed 3 --stop 0.1:0.2 --out " + q(stop));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto gt = evpipe::camera::read_trajectory_csv((dir / "stop.gt.csv").string());
+  std::size_t still = 0;
+  for (const auto& p : gt) {
+    if (p.t_us < 100'000 || p.t_us > 300'000) continue;
+    EXPECT_LT((p.pose.t_cam_model_m - gt[100].pose.t_cam_model_m).norm(), 2e-6);
+    ++still;
+  }
+  EXPECT_GE(still, 200u);
+  // Usage errors: overlapping stops, an unknown distractor, a stop with --trajectory.
+  EXPECT_EQ(run(kEvsim + k3dArgs + " --stop 0.1:0.1,0.25:0.1 --out " + q(stop)).status, 2);
+  r = run(kEvsim + k3dArgs + " --distractor tree --out " + q(stop));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("moving-lines"), std::string::npos) << r.err;
+  EXPECT_EQ(run(kEvsim + " --scene demo --stop 1:1 --out " + q(stop)).status, 2);
 }
 
 TEST(Evpipe, SigintEndsAPacedReplayPromptly) {

@@ -86,12 +86,15 @@ TEST_P(EvpipePose, EstimatesPosesCloseToTheTruth) {
   const auto est = evpipe::camera::read_trajectory_csv(poses);
   const auto gt = evpipe::camera::read_trajectory_csv(stem.string() + ".gt.csv");
   // 2 s of 30 ms windows = 66; a slow start gathers up to 300 ms of events to initialise.
-  EXPECT_GE(est.size(), 40u) << r.out;  // measured 61 (planar, slow: sparse windows; 49 with a fixed threshold) and 67
+  EXPECT_GE(est.size(), 40u) << r.out;  // measured 66 and 65 (curvature: 61, sparse windows; 49 fixed threshold; 67)
   EXPECT_EQ(json_field(r.out, "pose_updates"), std::to_string(est.size()));
   const auto a = ate(est, gt);
   std::cout << model << " " << distance_m << " m " << noise_hz << " Hz/px: " << est.size() << " poses, ATE RMSE "
             << a.rmse_mm << " mm, max " << a.max_mm << " mm\n";
-  EXPECT_EQ(a.n, est.size());
+  // Every pose lies within the truth's time span, except possibly the last: with evpipe's causal default filter the
+  // recording's last events are decided at once and the final window, which may end after the last truth sample, is
+  // published too.
+  EXPECT_GE(a.n + 1, est.size());
   EXPECT_LT(a.rmse_mm, 15.0);  // the paper's 15 mm (Table 6)
   // The CSV's extra columns: status,inliers,sigma_px.
   std::ifstream in(poses);
@@ -200,7 +203,8 @@ TEST(EvpipePoseWorker, InitialisesOnAWorkerWhileEveryWindowIsPublished) {
   EXPECT_GE(std::stoi(json_field(forced.out, "pose_init_attempts")), 1) << forced.out;
 }
 
-// evpipe's own curvature default (DenoiseConfig::pipeline_params): the density threshold follows the measured noise
+// evpipe's own curvature defaults when curvature is chosen (DenoiseConfig::pipeline_params): the density threshold
+// follows the measured noise
 // rate, at most the paper's 5. The bundled sample's target moves slowly around t = 1.5 s (~20 px/s), where the fixed
 // threshold starves the tracker of edges (measured: 77 of 100 windows tracked, against 100 with the default).
 TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
@@ -214,9 +218,9 @@ TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
                q(stem + ".model.yaml") + " --prior " + q(stem + ".prior.yaml") + " --ground-truth " +
                q(stem + ".gt.csv"));
   };
-  const auto adaptive = replay("");
+  const auto adaptive = replay("denoise: {filter: curvature}");
   ASSERT_EQ(adaptive.status, 0) << adaptive.err;
-  const auto paper = replay("denoise: {params: {adaptive: false}}");
+  const auto paper = replay("denoise: {filter: curvature, params: {adaptive: false}}");
   ASSERT_EQ(paper.status, 0) << paper.err;
   for (const auto* r : {&adaptive, &paper}) {
     std::cout << (r == &adaptive ? "default: " : "adaptive false: ") << json_field(r->out, "pose_updates")
@@ -233,4 +237,12 @@ TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
   EXPECT_EQ(json_field(paper.out, "adaptive_periods"), "0");
   EXPECT_EQ(json_field(paper.out, "density_threshold_used"), "5");
   EXPECT_LT(std::stoi(json_field(paper.out, "pose_updates")), std::stoi(json_field(adaptive.out, "pose_updates")));
+  // evpipe's default filter (significance) keeps the slow part too.
+  const auto significance = replay("");
+  ASSERT_EQ(significance.status, 0) << significance.err;
+  std::cout << "significance: " << json_field(significance.out, "pose_updates") << " poses, ATE "
+            << json_field(significance.out, "ate_rmse_mm") << " mm\n";
+  EXPECT_EQ(json_field(significance.out, "denoise_filter"), "significance");
+  EXPECT_GE(std::stoi(json_field(significance.out, "pose_updates")), 95);
+  EXPECT_LT(std::stod(json_field(significance.out, "ate_rmse_mm")), 5.0);
 }

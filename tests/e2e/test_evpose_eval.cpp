@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -244,6 +245,74 @@ TEST(EvposeEval, BadInputOneLineErrorsAndExitCodes) {
   EXPECT_EQ(run(q(est) + " " + q(truth) + " --max-gap-us -5").status, 2);
   EXPECT_EQ(run(q(est) + " " + q(truth) + " --bogus").status, 2);
   EXPECT_EQ(run("--help").status, 0);
+}
+
+}  // namespace
+
+namespace {
+
+std::string fmt_double(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+// Issue 21: evpipe's poses CSV with status (holding), t_last_update_us and cov_0..cov_35: NEES, wrong confident
+// poses, --errors-out, and a malformed covariance row.
+TEST(EvposeEval, NeesWrongConfidentAndErrorsOut) {
+  const std::string truth = truth_csv();
+  const auto path = (dir() / "est-cov.csv").string();
+  std::vector<std::string> cols = {"status", "t_last_update_us"};
+  for (int k = 0; k < 36; ++k) cols.push_back("cov_" + std::to_string(k));
+  {
+    camera::TrajectoryCsvWriter w(path, cols);
+    for (int i = 0; i < 12; ++i) {
+      const std::int64_t t = kT0 + 100'000 + i * 30'000;
+      camera::Pose p = truth_pose(t);
+      // Tracking rows 3 mm off in depth with sigma_z 3 mm (NEES 1); row 10 holding 25 mm off (wrong); row 11
+      // tracking without a covariance.
+      p.t_cam_model_m.z() += i == 10 ? 0.025 : 0.003;
+      std::vector<std::string> extra = {i == 10 ? "holding" : "tracking", std::to_string(t)};
+      for (int k = 0; k < 36; ++k) {
+        const bool diag = k % 7 == 0;
+        const double v = k == 35 ? 9e-6 : (diag ? 1e-4 : 0.0);
+        extra.push_back(i == 11 ? std::string() : (diag ? fmt_double(v) : "0"));
+      }
+      w.write({t, p}, extra);
+    }
+  }
+  const std::string errors = (dir() / "errors.csv").string();
+  const Result r = run(q(path) + " " + q(truth) + " --json --errors-out " + q(errors));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string& j = r.out;
+  EXPECT_EQ(num(j, "\"poses_holding\":"), 1);
+  EXPECT_EQ(num(j, "\"confident_evaluated\":"), 12);
+  EXPECT_EQ(num(j, "\"wrong_confident\":"), 1);
+  EXPECT_EQ(num(j, "\"nees_count\":"), 10);  // tracking rows with a covariance (the holding row does not count)
+  EXPECT_NEAR(num(j, "\"nees_mean\":"), 1.0, 2e-3);
+  std::ifstream f(errors);
+  std::string header, line;
+  std::getline(f, header);
+  EXPECT_EQ(header, "t_us,status,confident,wrong,error_mm,rotation_deg,ex_mm,ey_mm,ez_mm,nees,symmetry");
+  int rows = 0;
+  while (std::getline(f, line)) ++rows;
+  EXPECT_EQ(rows, 12);
+
+  // Some cov_ cells of a row empty: an error naming the file.
+  std::string text;
+  {
+    std::ifstream in(path);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    text = ss.str();
+  }
+  const auto second_row = text.find('\n', text.find('\n') + 1) + 1;
+  const auto last_comma = text.find('\n', second_row) - 1;
+  const std::string broken = (dir() / "est-cov-broken.csv").string();
+  std::ofstream(broken) << text.substr(0, text.rfind(',', last_comma) + 1) << text.substr(last_comma + 1);
+  const Result bad = run(q(broken) + " " + q(truth));
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.err.find("est-cov-broken.csv"), std::string::npos) << bad.err;
 }
 
 }  // namespace

@@ -4,9 +4,13 @@
 
 #include <cmath>
 #include <numbers>
+#include <optional>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include <Eigen/Cholesky>
 
 #include "evpipe/metrics/trajectory.hpp"
 
@@ -217,6 +221,159 @@ TEST(EvaluateTrajectory, RejectsBadArguments) {
   opt.only_tracking = false;
   opt.max_gap_us = -1;
   EXPECT_THROW((void)evaluate_trajectory(truth, truth, opt), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace evpipe::metrics
+
+// ---- issue 21: wrong confident poses, holding, NEES, symmetry ------------------------------------------------
+
+namespace evpipe::metrics {
+namespace {
+
+camera::StampedPose at(std::int64_t t_us, const Eigen::Vector3d& t_m, const Eigen::Quaterniond& q) {
+  camera::StampedPose sp;
+  sp.t_us = t_us;
+  sp.pose.t_cam_model_m = t_m;
+  sp.pose.q_cam_model = q.normalized();
+  return sp;
+}
+
+TEST(TrajectoryTrust, WrongConfidentCountsTrackingAndHoldingOverEitherThreshold) {
+  const Eigen::Vector3d base(0.1, 0.0, 1.0);
+  const std::vector<camera::StampedPose> truth = {at(0, base, Eigen::Quaterniond::Identity()),
+                                                  at(1000, base, Eigen::Quaterniond::Identity())};
+  const auto turn = [](double deg) {
+    return Eigen::Quaterniond(Eigen::AngleAxisd(deg * std::numbers::pi / 180.0, Eigen::Vector3d::UnitX()));
+  };
+  const std::vector<camera::StampedPose> est = {
+      at(100, base + Eigen::Vector3d(0.019, 0, 0), turn(1.9)),  // tracking, within both: right
+      at(200, base + Eigen::Vector3d(0.021, 0, 0), turn(0.0)),  // tracking, 21 mm: wrong
+      at(300, base, turn(2.1)),                                 // holding, 2.1 deg: wrong
+      at(400, base + Eigen::Vector3d(0.5, 0, 0), turn(0.0)),    // lost (not confident): not counted
+      at(500, base, turn(0.0)),                                 // holding, right
+  };
+  const std::vector<std::string> status = {"tracking", "tracking", "holding", "lost", "holding"};
+  TrajectoryEval r = evaluate_trajectory(est, truth, {}, status);
+  EXPECT_EQ(r.confident_evaluated, 4u);
+  EXPECT_EQ(r.wrong_confident, 2u);
+  ASSERT_TRUE(r.wrong_confident_share);
+  EXPECT_DOUBLE_EQ(*r.wrong_confident_share, 0.5);
+  EXPECT_EQ(r.poses_holding, std::optional<std::size_t>(2));
+  // only_tracking keeps the valid poses: tracking AND holding.
+  TrajectoryEvalOptions valid;
+  valid.only_tracking = true;
+  r = evaluate_trajectory(est, truth, valid, status);
+  EXPECT_EQ(r.poses_evaluated, 4u);
+  EXPECT_EQ(r.poses_not_tracking, 1u);
+  // Thresholds are options.
+  TrajectoryEvalOptions loose;
+  loose.wrong_max_mm = 30.0;
+  loose.wrong_max_deg = 3.0;
+  EXPECT_EQ(evaluate_trajectory(est, truth, loose, status).wrong_confident, 0u);
+  // Without a status column every published pose is confident.
+  EXPECT_EQ(evaluate_trajectory(est, truth).wrong_confident, 3u);
+}
+
+TEST(TrajectoryTrust, ErrorVectorIsTheCovarianceParametrisation) {
+  // R = exp([d]x) R_hat, t = t_hat + dt: an estimate made from the truth by the inverse perturbation gives (d, dt).
+  const Eigen::Vector3d d(0.01, -0.02, 0.005), dt(0.003, -0.001, 0.002);
+  camera::Pose truth;
+  truth.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()));
+  truth.t_cam_model_m = Eigen::Vector3d(0.1, -0.2, 0.9);
+  camera::Pose est;
+  est.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(-d.norm(), d.normalized())) * truth.q_cam_model;
+  est.t_cam_model_m = truth.t_cam_model_m - dt;
+  const auto e = pose_error_vector(est, truth);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(e[i], d[i], 1e-12);
+    EXPECT_NEAR(e[3 + i], dt[i], 1e-12);
+  }
+}
+
+TEST(TrajectoryTrust, NeesOfKnownErrorsAndCovariances) {
+  Eigen::Matrix<double, 6, 1> e;
+  e << 0.01, 0.0, 0.0, 0.002, 0.0, 0.0;
+  Eigen::Matrix<double, 6, 6> P = Eigen::Matrix<double, 6, 6>::Identity();
+  P.diagonal() << 1e-4, 1e-4, 1e-4, 4e-6, 4e-6, 4e-6;
+  ASSERT_TRUE(nees(e, P));
+  EXPECT_NEAR(*nees(e, P), 1.0 + 1.0, 1e-9);
+  Eigen::Matrix<double, 6, 6> bad = P;
+  bad(0, 0) = -1.0;
+  EXPECT_FALSE(nees(e, bad));
+  bad = P;
+  bad(0, 1) = 1e-3;  // not symmetric
+  EXPECT_FALSE(nees(e, bad));
+
+  // Seeded Gaussian errors drawn from the covariance: the mean NEES is close to 6; only tracking rows count.
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::Matrix<double, 6, 6> cov = Eigen::Matrix<double, 6, 6>::Zero();
+  cov.diagonal() << 4e-6, 9e-6, 1e-6, 1e-6, 4e-6, 2.5e-5;
+  cov(3, 5) = cov(5, 3) = 2e-6;
+  const Eigen::Matrix<double, 6, 6> L = cov.llt().matrixL();
+  std::vector<camera::StampedPose> truth, est;
+  std::vector<std::string> status;
+  std::vector<std::optional<Eigen::Matrix<double, 6, 6>>> covs;
+  for (int i = 0; i < 2000; ++i) {
+    camera::StampedPose t;
+    t.t_us = i * 1000;
+    t.pose.t_cam_model_m = Eigen::Vector3d(0, 0, 1);
+    truth.push_back(t);
+    Eigen::Matrix<double, 6, 1> z;
+    for (int k = 0; k < 6; ++k) z[k] = g(rng);
+    const Eigen::Matrix<double, 6, 1> err = L * z;
+    camera::StampedPose e_pose = t;
+    const Eigen::Vector3d rv = err.head<3>();
+    e_pose.pose.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(-rv.norm(), rv.normalized())) * t.pose.q_cam_model;
+    e_pose.pose.t_cam_model_m = t.pose.t_cam_model_m - err.tail<3>();
+    est.push_back(e_pose);
+    status.push_back(i % 10 == 0 ? "holding" : "tracking");
+    covs.emplace_back(i % 7 == 0 ? std::nullopt : std::optional<Eigen::Matrix<double, 6, 6>>(cov));
+  }
+  const TrajectoryEval r = evaluate_trajectory(est, truth, {}, status, covs);
+  ASSERT_TRUE(r.nees_mean);
+  EXPECT_NEAR(*r.nees_mean, 6.0, 0.4);
+  std::size_t expected = 0;
+  for (int i = 0; i < 2000; ++i) expected += (i % 10 != 0 && i % 7 != 0) ? 1 : 0;
+  EXPECT_EQ(r.nees_count, expected);
+  EXPECT_EQ(r.nees_invalid, 0u);
+  // No covariance anywhere: NEES n/a.
+  EXPECT_FALSE(evaluate_trajectory(est, truth, {}, status).nees_mean);
+}
+
+TEST(TrajectoryTrust, PlanarRectSymmetryScoresAgainstTheBestEquivalentTruth) {
+  // A 0.27 x 0.189 board in z = 0 with its corner at the origin (as the evbench model).
+  const std::vector<Eigen::Vector3d> pts = {{0, 0, 0}, {0.27, 0, 0}, {0.27, 0.189, 0}, {0, 0.189, 0}};
+  const auto syms = planar_rect_symmetries(pts);
+  ASSERT_EQ(syms.size(), 3u);
+  for (const auto& S : syms) {
+    // Each maps the board's corners onto corners (the board onto itself).
+    for (const auto& p : pts) {
+      const Eigen::Vector3d q = S.apply(p);
+      double best = 1e9;
+      for (const auto& c : pts) best = std::min(best, (q - c).norm());
+      EXPECT_LT(best, 1e-12);
+    }
+  }
+  EXPECT_THROW((void)planar_rect_symmetries({{0, 0, 0}, {0, 0, 1}}), std::invalid_argument);
+
+  camera::StampedPose g;
+  g.pose.t_cam_model_m = Eigen::Vector3d(-0.1, 0.0, 0.9);
+  g.pose.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()));
+  std::vector<camera::StampedPose> truth = {g, g};
+  truth[1].t_us = 1000;
+  camera::StampedPose e = g;
+  e.t_us = 500;
+  e.pose = g.pose * syms[0];  // the board turned 180 deg about its normal: the same lines
+  const std::vector<camera::StampedPose> est = {e};
+  EXPECT_EQ(evaluate_trajectory(est, truth).wrong_confident, 1u);
+  TrajectoryEvalOptions o;
+  o.symmetries = syms;
+  const TrajectoryEval r = evaluate_trajectory(est, truth, o);
+  EXPECT_EQ(r.wrong_confident, 0u);
+  EXPECT_LT(r.ate_mm->max, 1e-6);
+  EXPECT_EQ(r.samples[0].symmetry_index, 1u);
 }
 
 }  // namespace

@@ -32,7 +32,21 @@ struct Key {
   std::function<const std::string&(const RunConfig&)> get_str;
   std::function<void(RunConfig&, std::string)> set_str;
   std::function<void(RunConfig&, bool)> set_bool;
+  std::function<double(const RunConfig&)> get_real;
+  std::function<void(RunConfig&, double)> set_real;
 };
+
+template <typename S>
+Key real_key(std::string path, S RunConfig::*section, double S::*field, double lo, double hi) {
+  Key k;
+  k.info.path = std::move(path);
+  k.info.type = KeyInfo::Type::real;
+  k.info.min_real = lo;
+  k.info.max_real = hi;
+  k.get_real = [section, field](const RunConfig& c) { return c.*section.*field; };
+  k.set_real = [section, field](RunConfig& c, double v) { c.*section.*field = v; };
+  return k;
+}
 
 template <typename S, typename T>
 Key int_key(std::string path, S RunConfig::*section, T S::*field, std::int64_t lo, std::int64_t hi,
@@ -142,6 +156,9 @@ const std::vector<Key>& keys() {
     t.push_back(str_key("lcm.stats_channel", &R::lcm, &LcmConfig::stats_channel, true, kLcmChannelMax));
     t.push_back(int_key("lcm.stats_period_ms", &R::lcm, &LcmConfig::stats_period_ms, 10, 1000,
                         "interfaces.md: at least once a second"));
+    t.push_back(bool_key("lcm.preview", &R::lcm, &LcmConfig::preview));
+    t.push_back(real_key("lcm.preview_hz", &R::lcm, &LcmConfig::preview_hz, 0.1, 30.0));
+    t.push_back(str_key("lcm.preview_channel", &R::lcm, &LcmConfig::preview_channel, true, kLcmChannelMax));
     t.push_back(
         int_key("pipeline.source_queue_packets", &R::pipeline, &PipelineConfig::source_queue_packets, 2, 65536));
     t.push_back(int_key("pipeline.source_queue_events", &R::pipeline, &PipelineConfig::source_queue_events, 1000,
@@ -270,6 +287,10 @@ std::optional<double> parse_number(const std::string& text) {
   }
 }
 
+std::string real_error(const KeyInfo& k, const std::string& got) {
+  return fmt::format("must be a number in [{}, {}], got '{}'", k.min_real, k.max_real, got);
+}
+
 std::string speed_error(const std::string& got) {
   return fmt::format("must be 'max' or a number in [{}, {}], got '{}'", kMinSpeed, kMaxSpeed, got);
 }
@@ -354,6 +375,13 @@ void set_value(const Doc& doc, const Key& k, const YAML::Node& n, const YAML::No
       k.set_int(c, *v);
       return;
     }
+    case Type::real: {
+      const auto text = doc.scalar(n, at, key, "a number");
+      const auto v = parse_number(text);
+      if (!v || !(*v >= info.min_real && *v <= info.max_real)) doc.fail(at, key, real_error(info, text));
+      k.set_real(c, *v);
+      return;
+    }
     case Type::speed: {
       const auto text = doc.scalar(n, at, key, "a number or 'max'");
       if (text == "max") {
@@ -410,6 +438,10 @@ std::optional<Problem> find_problem(const RunConfig& c) {
         break;
       case Type::integer:
         why = check_int(info, k.get_int(c));
+        break;
+      case Type::real:
+        if (const double v = k.get_real(c); !(v >= info.min_real && v <= info.max_real))
+          why = real_error(info, fmt::format("{}", v));
         break;
       case Type::speed:
         if (c.source.speed && !(*c.source.speed >= kMinSpeed && *c.source.speed <= kMaxSpeed))
@@ -659,6 +691,9 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "pose_channel" << YAML::Value << lcm.pose_channel;
   out << YAML::Key << "stats_channel" << YAML::Value << lcm.stats_channel;
   out << YAML::Key << "stats_period_ms" << YAML::Value << lcm.stats_period_ms;
+  out << YAML::Key << "preview" << YAML::Value << lcm.preview;
+  out << YAML::Key << "preview_hz" << YAML::Value << lcm.preview_hz;
+  out << YAML::Key << "preview_channel" << YAML::Value << lcm.preview_channel;
   out << YAML::EndMap;
   out << YAML::Key << "pipeline" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "source_queue_packets" << YAML::Value << pipeline.source_queue_packets;

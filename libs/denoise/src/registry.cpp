@@ -14,6 +14,7 @@
 #include "evpipe/denoise/hotpixel.hpp"
 #include "evpipe/denoise/knoise.hpp"
 #include "evpipe/denoise/random_thinning.hpp"
+#include "evpipe/denoise/significance.hpp"
 #include "evpipe/denoise/stcf.hpp"
 #include "evpipe/denoise/ynoise.hpp"
 
@@ -24,6 +25,7 @@ const std::vector<FilterSpec>& filter_specs() {
   // clang-format off
   static const std::vector<FilterSpec> specs = {
       curvature_spec(),  // the paper's filter first
+      significance_spec(),  // evpipe's pipeline default
       baf_spec(),
       knoise_spec(),
       ynoise_spec(),

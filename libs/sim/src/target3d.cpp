@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <stdexcept>
 
 namespace evpipe::sim {
 
@@ -187,8 +188,37 @@ std::vector<Event> render_target(const TargetScene& scene, std::int64_t t0_us, s
   return kept;
 }
 
+double motion_time_s(double t_s, const std::vector<MotionStop>& stops, double ramp_s) {
+  if (ramp_s < 0.0) throw std::invalid_argument("motion stops: negative ramp");
+  double end_prev = -std::numeric_limits<double>::infinity();
+  double lost = 0.0;  // time lost to the stops before t_s
+  const double r = ramp_s;
+  const double pi = std::numbers::pi;
+  // Integral of the speed factor over [0, x] of a ramp of length r: down 0.5 (1 + cos), up 0.5 (1 - cos).
+  auto down = [&](double x) { return r > 0 ? 0.5 * x + 0.5 * r / pi * std::sin(pi * x / r) : 0.0; };
+  auto up = [&](double x) { return r > 0 ? 0.5 * x - 0.5 * r / pi * std::sin(pi * x / r) : 0.0; };
+  for (const auto& st : stops) {
+    if (!(st.at_s >= 0.0) || !(st.for_s >= 0.0)) throw std::invalid_argument("motion stops: negative time");
+    if (st.at_s - r < end_prev) throw std::invalid_argument("motion stops: unsorted or overlapping (ramps included)");
+    end_prev = st.at_s + st.for_s + r;
+  }
+  for (const auto& st : stops) {
+    const double a = st.at_s - r;  // start of the slow-down
+    if (t_s <= a) break;
+    if (t_s < st.at_s) return t_s - lost - ((t_s - a) - down(t_s - a));
+    lost += r - down(r);
+    if (t_s < st.at_s + st.for_s) return st.at_s - lost;
+    lost += st.for_s;
+    const double b = st.at_s + st.for_s;  // start of the speed-up
+    if (t_s < b + r) return t_s - lost - ((t_s - b) - up(t_s - b));
+    lost += r - up(r);
+  }
+  return t_s - lost;
+}
+
 std::vector<camera::StampedPose> generate_motion(std::int64_t t0_us, std::int64_t t1_us, const MotionOptions& o,
                                                  std::mt19937_64& rng) {
+  (void)motion_time_s(0.0, o.stops, o.stop_ramp_s);  // validates the stops before anything is drawn
   std::uniform_real_distribution<double> freq(o.min_freq_hz, o.max_freq_hz);
   std::uniform_real_distribution<double> phase(0.0, 2.0 * std::numbers::pi);
   struct Axis {
@@ -214,7 +244,7 @@ std::vector<camera::StampedPose> generate_motion(std::int64_t t0_us, std::int64_
   const std::int64_t step = std::max<std::int64_t>(step_us, 1);
   // Every step from t0, and t1 itself when the span is not a whole number of steps (the end is covered).
   for (std::int64_t t = t0_us; t <= t1_us; t = (t < t1_us && t + step > t1_us) ? t1_us : t + step) {
-    const double ts = static_cast<double>(t - t0_us) * 1e-6;
+    const double ts = motion_time_s(static_cast<double>(t - t0_us) * 1e-6, o.stops, o.stop_ramp_s);
     double v[6];
     for (int a = 0; a < 6; ++a) {
       v[a] = 0;

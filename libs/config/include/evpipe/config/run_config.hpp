@@ -41,6 +41,7 @@ struct KeyInfo {
     string,   ///< a string of at most max_length bytes, no NUL; non_empty if it must not be ""
     boolean,  ///< true / false
     integer,  ///< a decimal integer in [min, max], a multiple of multiple_of
+    real,     ///< a finite number in [min_real, max_real]
     choice,   ///< one of `choices`
     speed,    ///< 'max' or a number in [kMinSpeed, kMaxSpeed]
     threads,  ///< 'auto' or an integer in [min, max]
@@ -51,6 +52,8 @@ struct KeyInfo {
   std::int64_t min = 0;  ///< integer / threads: the inclusive range (window.hop_us: also at most window.length_us
   std::int64_t max = 0;  ///<   and at least length_us / kMaxWindowOverlap; batch_events: at most source_queue_events)
   std::int64_t multiple_of = 1;
+  double min_real = 0.0;  ///< real: the inclusive range
+  double max_real = 0.0;
   std::size_t max_length = 4096;  ///< string: PATH_MAX (LCM channels: 63, LCM_MAX_CHANNEL_NAME_LENGTH)
   bool non_empty = false;
   std::vector<std::string> choices;
@@ -92,7 +95,7 @@ struct WindowConfig {
 
 struct DenoiseConfig {
   /// A filter or comma-separated chain by name (`evdenoise --list-filters`); "none" = no denoising.
-  std::string filter = "curvature";
+  std::string filter = "significance";
   /// KEY (or NAME.KEY in a chain) → value, as `evdenoise --set KEY=VALUE`; the filter validates them.
   std::vector<std::pair<std::string, std::string>> params;
   /// Threads one block of the filter is spread over (denoise::Filter::set_parallelism); 0 = auto (the cores the
@@ -131,6 +134,10 @@ struct LcmConfig {
   std::string pose_channel = "EVPIPE_POSE";  ///< channel of the pose messages
   std::string stats_channel = "EVPIPE_STATS";
   std::int64_t stats_period_ms = 1000;  ///< statistics message period
+  /// The preview for people (evpipe-view; preview_t, docs/operations.md "Watching the pipeline"): off by default.
+  bool preview = false;
+  double preview_hz = 10.0;  ///< previews per second when on (0.1-30)
+  std::string preview_channel = "EVPIPE_PREVIEW";
 };
 
 struct PipelineConfig {

@@ -46,9 +46,19 @@ struct TargetScene {
 std::vector<Event> render_target(const TargetScene& scene, std::int64_t t0_us, std::int64_t t1_us,
                                  std::mt19937_64& rng);
 
+/// A stop of the generated motion: the target stands still from at_s (seconds after the start) for for_s
+/// seconds. The motion slows down smoothly over the ramp before at_s and speeds up over the ramp after the stop
+/// (MotionOptions::stop_ramp_s), then continues where it stopped: the motion is paused, not changed.
+struct MotionStop {
+  double at_s = 0.0;
+  double for_s = 0.0;
+};
+
 /// Smooth random motion about a base pose: each of x, y, z and the three rotation-vector components is a sum
 /// of three sinusoids with random frequencies in [min_freq_hz, max_freq_hz] and phases, scaled so that the
 /// excursion stays within ±range and the speed within max_speed (both checked on the generated samples).
+/// With stops, the motion's own time is paused (time warp): the poses are those of the unpaused motion, the
+/// speed only drops (ramps of the form 0.5 (1 ± cos)), so the bounds still hold.
 struct MotionOptions {
   camera::Pose base;                                        ///< T_cam_model at the centre of the motion
   Eigen::Vector3d pivot_model_m = Eigen::Vector3d::Zero();  ///< rotations turn about this model point
@@ -58,8 +68,15 @@ struct MotionOptions {
   double max_angular_speed_deg_s = 20.0;
   double min_freq_hz = 0.05;
   double max_freq_hz = 0.4;
-  double rate_hz = 1000.0;  ///< sample rate of the trajectory
+  double rate_hz = 1000.0;        ///< sample rate of the trajectory
+  std::vector<MotionStop> stops;  ///< sorted by at_s, not overlapping (ramps included); empty: no stop
+  double stop_ramp_s = 0.1;       ///< slowing down before and speeding up after each stop
 };
+
+/// The motion time (seconds since the start) at real time t_s under `stops`: t_s minus the time lost to the stops
+/// before t_s (constant while standing still). std::invalid_argument for unsorted or overlapping stops, a
+/// negative time or duration, or a negative ramp.
+double motion_time_s(double t_s, const std::vector<MotionStop>& stops, double ramp_s);
 std::vector<camera::StampedPose> generate_motion(std::int64_t t0_us, std::int64_t t1_us, const MotionOptions& options,
                                                  std::mt19937_64& rng);
 

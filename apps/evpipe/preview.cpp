@@ -1,0 +1,240 @@
+#include "preview.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <filesystem>
+
+#include "evpipe/pipeline/background_task.hpp"
+#include "evpipe/view/frame.hpp"
+#include "evpipe/view/render.hpp"
+#include "sink.hpp"
+
+namespace evpipe::app {
+
+EventBatchPtr RawTap::next() {
+  EventBatchPtr batch = inner_->next();
+  if (!batch || batch->empty()) return batch;
+  if (batch->discontinuity_before) release_before_.store(std::numeric_limits<std::int64_t>::min());
+  const std::int64_t before = release_before_.load(std::memory_order_relaxed);
+  const std::lock_guard lock(mutex_);
+  held_.push_back(batch);
+  held_events_ += batch->size();
+  while (!held_.empty() && (held_.front()->events.back().t_us < before || held_events_ > kMaxEvents)) {
+    held_events_ -= held_.front()->size();
+    held_.pop_front();
+    released_any_ = true;
+  }
+  return batch;
+}
+
+bool RawTap::batches(std::int64_t t0_us, std::int64_t t1_us, std::vector<EventBatchPtr>& out) const {
+  const std::lock_guard lock(mutex_);
+  for (const auto& b : held_)
+    if (b->events.back().t_us >= t0_us && b->events.front().t_us < t1_us) out.push_back(b);
+  return !released_any_ || (!held_.empty() && held_.front()->events.front().t_us <= t0_us);
+}
+
+PreviewWorker::PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry geometry, std::int64_t hop_us,
+                             std::optional<camera::CameraModel> camera, std::optional<camera::LineModel> model,
+                             const AppSink* sink)
+    : options_(std::move(options)),
+      tap_(tap),
+      geometry_(geometry),
+      hop_us_(hop_us),
+      camera_(camera),
+      model_(std::move(model)),
+      sink_(sink) {
+  if (options_.lcm) publisher_ = std::make_unique<transport::PreviewPublisher>(options_.lcm_url, options_.lcm_channel);
+  if (!options_.video.empty() || options_.png_every > 0) output_ = std::make_unique<view::FrameOutput>();
+  if (!options_.video.empty()) {
+    const double fps =
+        options_.video_fps > 0 ? options_.video_fps : 1e6 / static_cast<double>(std::max<std::int64_t>(hop_us_, 1));
+    output_->open_video(options_.video, fps);
+    video_ = true;
+  }
+  if (options_.png_every > 0) std::filesystem::create_directories(options_.png_dir);
+  thread_ = std::thread([this] { run(); });
+}
+
+PreviewWorker::~PreviewWorker() {
+  {
+    const std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void PreviewWorker::offer(const EventWindow& window, const pose::PoseEstimate& estimate) {
+  const std::uint64_t index = windows_offered_++;
+  const bool every_window = video_ || options_.png_every > 0;
+  const auto now = std::chrono::steady_clock::now();
+  bool due = every_window;
+  if (!due && options_.lcm && options_.hz > 0) {
+    // On a grid of 1 / hz (host time), so that the rate is hz on average whatever the window hop.
+    const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(1.0 / options_.hz));
+    due = index == 0 || now >= next_offer_;
+    if (due) next_offer_ = (index == 0 || now - next_offer_ > period) ? now + period : next_offer_ + period;
+  }
+  if (!due) {
+    // Nothing pending: what is older than this window is not needed any more.
+    if (tap_ && idle_.load(std::memory_order_acquire)) tap_->release_before(window.t0_us);
+    return;
+  }
+  if (options_.lossless) {
+    // Replay with --video / --png-every: every window, in order; the pose thread waits for room (replay only).
+    std::unique_lock lock(mutex_);
+    cv_.wait(lock, [this] { return queue_.size() < 4 || stop_; });
+    queue_.push_back({window, estimate});
+    idle_.store(false, std::memory_order_release);
+    release_locked();
+  } else {
+    std::unique_lock lock(mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) {
+      dropped_busy_.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    if (!queue_.empty()) {  // the builder is behind: the newest wins
+      queue_.clear();
+      ++counters_.dropped;
+    }
+    queue_.push_back({window, estimate});
+    idle_.store(false, std::memory_order_release);
+    release_locked();
+  }
+  cv_.notify_one();
+}
+
+void PreviewWorker::release_locked() {
+  if (!tap_ || queue_.empty()) return;
+  std::int64_t needed = queue_.front().window.t0_us;
+  if (building_t0_us_) needed = std::min(needed, *building_t0_us_);
+  tap_->release_before(needed);
+}
+
+void PreviewWorker::run() {
+  pipeline::lower_priority_and_name("evpipe-preview", options_.nice);
+  for (;;) {
+    Job job;
+    {
+      std::unique_lock lock(mutex_);
+      cv_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopped and drained
+      job = std::move(queue_.front());
+      queue_.pop_front();
+      building_t0_us_ = job.window.t0_us;
+    }
+    cv_.notify_all();  // room for a lossless producer
+    try {
+      build(job);
+    } catch (const std::exception& e) {
+      const std::lock_guard lock(mutex_);
+      if (error_.empty()) error_ = e.what();
+    }
+    const std::lock_guard lock(mutex_);
+    building_t0_us_.reset();
+    if (queue_.empty()) idle_.store(true, std::memory_order_release);
+  }
+}
+
+void PreviewWorker::build(const Job& job) {
+  const auto& w = job.window;
+  const auto& e = job.estimate;
+  transport::PreviewRecord r;
+  r.t_us = e.t_us;
+  r.window_t0_us = w.t0_us;
+  r.window_t1_us = w.t1_us;
+  // The wire value of the status (pose_t.STATUS_*): 3 = holding once the pose stage has it.
+  r.status = static_cast<std::int8_t>(e.status);
+  r.pose_valid = e.pose_valid;
+  r.pose_events = static_cast<std::int32_t>(e.window_events);
+  r.inliers = static_cast<std::int32_t>(e.inliers);
+  r.sigma_px = static_cast<float>(e.sigma_px);
+  r.note = e.note;
+  view::start_image(r, view::preview_grid(geometry_.width, geometry_.height));
+  std::int64_t raw = 0;
+  if (tap_) {
+    std::vector<EventBatchPtr> batches;
+    const bool complete = tap_->batches(w.t0_us, w.t1_us, batches);
+    for (const auto& b : batches) raw += view::mark_raw(r, b->span(), w.t0_us, w.t1_us);
+    if (!complete) r.note += r.note.empty() ? "raw events incomplete" : "; raw events incomplete";
+  }
+  std::int64_t kept = 0;
+  for (const auto& part : w.parts) kept += view::mark_kept(r, part);
+  r.raw_events = static_cast<std::int32_t>(tap_ ? std::max(raw, kept) : kept);
+  r.kept_events = static_cast<std::int32_t>(kept);
+  if (camera_ && model_) r.segments = view::project_model(*camera_, *model_, e.T_cam_model);
+  r.latency_ms = static_cast<float>(static_cast<double>(last_latency_ns_.load(std::memory_order_relaxed)) / 1e6);
+  if (sink_) {
+    if (const auto st = sink_->latest_stats()) {
+      r.latency_p99_ms = static_cast<float>(static_cast<double>(st->latency_window_to_publish_ns.p99) / 1e6);
+      for (const auto& q : st->queues) r.queue_drops += static_cast<std::int64_t>(q.dropped);
+    }
+  }
+  std::uint64_t index = 0;
+  {
+    const std::lock_guard lock(mutex_);
+    r.previews_dropped = static_cast<std::int64_t>(counters_.dropped + dropped_busy_.load(std::memory_order_relaxed) +
+                                                   counters_.publish_failures);
+    index = counters_.built++;
+  }
+  // Every window is built for a video; LCM still gets at most preview_hz of them.
+  const auto now = std::chrono::steady_clock::now();
+  const bool every_window = video_ || options_.png_every > 0;  // else offer() has already kept to preview_hz
+  if (publisher_ &&
+      (!every_window || index == 0 || now - last_publish_ >= std::chrono::duration<double>(1.0 / options_.hz))) {
+    last_publish_ = now;
+    const bool ok = publisher_->publish(r);
+    const auto c = publisher_->counters();
+    const std::lock_guard lock(mutex_);
+    counters_.published = static_cast<std::uint64_t>(c.published);
+    counters_.publish_failures = static_cast<std::uint64_t>(c.failures);
+    counters_.bytes = static_cast<std::uint64_t>(c.bytes);
+    (void)ok;
+  }
+  if (video_ || (options_.png_every > 0 && index % static_cast<std::uint64_t>(options_.png_every) == 0)) {
+    view::RenderOptions ro;
+    ro.zoom = options_.zoom;
+    const cv::Mat img = view::render_preview(r, ro);
+    if (video_) output_->write_video(img);
+    if (options_.png_every > 0 && index % static_cast<std::uint64_t>(options_.png_every) == 0) {
+      output_->write_png((std::filesystem::path(options_.png_dir) / fmt::format("evpipe-{:06}.png", index)).string(),
+                         img);
+      const std::lock_guard lock(mutex_);
+      ++counters_.pngs;
+    }
+    if (video_) {
+      const auto info = output_->video_info();
+      const std::lock_guard lock(mutex_);
+      counters_.video_frames = static_cast<std::uint64_t>(info.frames);
+      counters_.video_path = info.path;
+      counters_.video_codec = info.codec;
+      counters_.video_width = info.width;
+      counters_.video_height = info.height;
+    }
+  }
+}
+
+void PreviewWorker::finish() {
+  {
+    const std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  if (video_) output_->close_video();
+  const std::lock_guard lock(mutex_);
+  if (!error_.empty()) throw std::runtime_error(error_);
+}
+
+PreviewCounters PreviewWorker::counters() const {
+  const std::lock_guard lock(mutex_);
+  PreviewCounters c = counters_;
+  c.dropped += dropped_busy_.load(std::memory_order_relaxed);
+  return c;
+}
+
+}  // namespace evpipe::app

@@ -1,0 +1,155 @@
+#pragma once
+// evpipe's preview (issue 22, docs/operations.md "Watching the pipeline"): what the pipeline saw in a window and
+// where it put the model, as an LCM preview message (--preview, EVPIPE_PREVIEW) and/or a video (--video) and PNG
+// stills (--png-every).
+//
+// Built so that the pose path never waits for it:
+//  * RawTap wraps the source: on the source thread it only keeps the batch pointers it delivered (shared, never
+//    copied) until the pose stage is past them, so that a preview can show the window's raw events too.
+//  * The pose thread offers a window and its estimate after the estimate is made (PoseProcessor): a relaxed
+//    atomic store per window, and when a preview is due (preview_hz, host time) a try_lock'ed hand-off of the
+//    window's pointers: a busy builder means the preview is dropped and counted, never a wait. Only a replay with
+//    --video (every window, lossless) waits for the builder, so the video has every window.
+//  * One builder thread (nice +10) rasterises raw and kept events, projects the model at the pose, publishes on
+//    its own LCM instance (not the pose publisher's lock) and writes the video / PNGs.
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "evpipe/camera/camera_model.hpp"
+#include "evpipe/camera/line_model.hpp"
+#include "evpipe/core/slicer.hpp"
+#include "evpipe/core/source.hpp"
+#include "evpipe/pose/estimator.hpp"
+#include "evpipe/transport/preview.hpp"
+#include "evpipe/view/output.hpp"
+
+namespace evpipe::app {
+
+class AppSink;
+
+/// The source wrapper that keeps the raw batches a pending preview may still need.
+class RawTap final : public EventSource {
+ public:
+  explicit RawTap(std::unique_ptr<EventSource> inner) : inner_(std::move(inner)) {}
+  EventBatchPtr next() override;
+  [[nodiscard]] bool finished() const override { return inner_->finished(); }
+  [[nodiscard]] const SourceInfo& info() const override { return inner_->info(); }
+  [[nodiscard]] const SourceStats& stats() const override { return inner_->stats(); }
+  [[nodiscard]] std::optional<double> progress() const override { return inner_->progress(); }
+
+  /// Batches are released once every event in them is older than this (set by the preview side).
+  void release_before(std::int64_t t_us) noexcept { release_before_.store(t_us, std::memory_order_relaxed); }
+  /// The kept batches that may hold events of [t0_us, t1_us). False when some were already released (or dropped at
+  /// the memory cap): the raw events of that window are then incomplete.
+  bool batches(std::int64_t t0_us, std::int64_t t1_us, std::vector<EventBatchPtr>& out) const;
+
+  /// At most this many events held (a stalled pose stage must not grow the tap without bound): the oldest go.
+  static constexpr std::size_t kMaxEvents = 4'000'000;
+
+ private:
+  std::unique_ptr<EventSource> inner_;
+  std::atomic<std::int64_t> release_before_{std::numeric_limits<std::int64_t>::min()};
+  mutable std::mutex mutex_;
+  std::deque<EventBatchPtr> held_;
+  std::size_t held_events_ = 0;
+  bool released_any_ = false;
+};
+
+struct PreviewOptions {
+  double hz = 10.0;     ///< previews per second (host time); ignored for video frames
+  bool lcm = false;     ///< publish preview_t
+  std::string lcm_url;  ///< "" = LCM's default
+  std::string lcm_channel{transport::kDefaultPreviewChannel};
+  std::string video;     ///< video file (every window)
+  double video_fps = 0;  ///< 0 = sensor time (1 / window hop)
+  int png_every = 0;     ///< every Nth window as PNG (0 = none)
+  std::string png_dir = ".";
+  bool lossless = false;  ///< replay: the pose thread waits for the builder (video/PNGs of every window)
+  int zoom = 2;
+  int nice = 10;
+};
+
+struct PreviewCounters {
+  std::uint64_t built = 0;
+  std::uint64_t dropped = 0;  ///< due previews not built: builder busy (or the hand-off's lock was taken)
+  std::uint64_t published = 0;
+  std::uint64_t publish_failures = 0;
+  std::uint64_t bytes = 0;
+  std::uint64_t video_frames = 0;
+  std::uint64_t pngs = 0;
+  std::string video_path;
+  std::string video_codec;
+  int video_width = 0, video_height = 0;
+};
+
+class PreviewWorker {
+ public:
+  /// camera/model: for the projected segments (absent: no segments). sink: the latest statistics (drops, p99).
+  PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry geometry, std::int64_t hop_us,
+                std::optional<camera::CameraModel> camera, std::optional<camera::LineModel> model, const AppSink* sink);
+  ~PreviewWorker();
+  PreviewWorker(const PreviewWorker&) = delete;
+  PreviewWorker& operator=(const PreviewWorker&) = delete;
+
+  /// Pose thread, after each window's estimate.
+  void offer(const EventWindow& window, const pose::PoseEstimate& estimate);
+  /// Publish thread, after a pose went out: its window -> LCM latency.
+  void note_published(std::int64_t latency_ns) noexcept {
+    last_latency_ns_.store(latency_ns, std::memory_order_relaxed);
+  }
+  /// Throws std::runtime_error when --video / --png-every cannot load their output module (view::FrameOutput).
+  /// After the pipeline joined: builds what is queued, stops the thread, closes the video. Throws
+  /// std::runtime_error when the video could not be written.
+  void finish();
+  [[nodiscard]] PreviewCounters counters() const;
+
+ private:
+  struct Job {
+    EventWindow window;
+    pose::PoseEstimate estimate;
+  };
+  void run();
+  void build(const Job& job);
+  /// With mutex_ held, after a push: the tap may release what no queued or running job needs.
+  void release_locked();
+
+  PreviewOptions options_;
+  RawTap* tap_;
+  SensorGeometry geometry_;
+  std::int64_t hop_us_;
+  std::optional<camera::CameraModel> camera_;
+  std::optional<camera::LineModel> model_;
+  const AppSink* sink_;
+  std::unique_ptr<transport::PreviewPublisher> publisher_;
+  std::unique_ptr<view::FrameOutput> output_;  ///< loaded for --video / --png-every only
+  bool video_ = false;
+
+  std::chrono::steady_clock::time_point next_offer_{};  // pose thread only
+  std::uint64_t windows_offered_ = 0;                   // pose thread only
+  std::atomic<std::int64_t> last_latency_ns_{0};
+  std::atomic<std::uint64_t> dropped_busy_{0};            ///< hand-offs that found the lock taken
+  std::chrono::steady_clock::time_point last_publish_{};  // builder thread only
+
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<Job> queue_;
+  /// No job queued or being built: the pose thread may then let the tap release what is older than its window.
+  std::atomic<bool> idle_{true};
+  std::optional<std::int64_t> building_t0_us_;  ///< window start of the job being built (guarded by mutex_)
+  bool stop_ = false;
+  PreviewCounters counters_;
+  std::string error_;
+  std::thread thread_;
+};
+
+}  // namespace evpipe::app

@@ -1,0 +1,101 @@
+#pragma once
+// Significance filter: keeps an event when its support is improbable under background activity (BA) alone, at a
+// set false-alarm rate alpha, against the BA rate estimated online from the stream (docs/algorithms.md,
+// "Significance filter"). Causal (decides each event on arrival: zero look-ahead), O(1) per event.
+//
+// Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Two tests, each
+// at alpha / 2 (so that a noise event passes with probability <= alpha); the edge-line test decides by default, the
+// recency test is optional (recency_max_us > 0):
+//  * recency (count) test: the ages a_q of the newest event of the 8 neighbours q (own pixel excluded: hot pixels
+//    and refractory bursts do not support themselves; each neighbour counts once, so a hot neighbour adds at most
+//    1) are i.i.d. Exp(lambda) under noise. Sorted a_(1) <= ... <= a_(8); the event passes when a_(k) <= A_k for
+//    some k, A_k being the age at which P(Binomial(8, 1 − exp(−lambda·A_k)) >= k) = alpha / 2 / 8 (Bonferroni over
+//    k). Fast edges pass it: their neighbours are a few ms old.
+//  * edge-line test: a moving edge crosses pixels p − d and p − 2d (d one of the 8 neighbour steps) at times
+//    t − s and t − 2s (constant local speed), with the event's polarity. A direction d matches when a stored event
+//    of p − d (age s <= T = 1 / slowest_speed_px_s) and one of p − 2d (age s2) of the same polarity satisfy
+//    |s2 − 2s| <= jitter + precision·s. Under noise a direction matches with probability
+//    p(U) = 1 − exp(−(lambda²/2)·(jitter·U + precision·U²/2)) within age U; with the directions' smallest matched
+//    ages sorted, u_(1) <= ... <= u_(8), the event passes when u_(m) <= U_m for some m, P(Binomial(8, p(U_m)) >= m)
+//    = alpha / 2 / 8. Slow edges pass it: their support is sparse but exactly placed in time.
+// lambda: from the events whose 8 neighbours are all older than T0 = 10 ms (rate r0 per pixel·s, which noise
+// alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us.
+//
+// State: per pixel the last `kRing` (4) events (time·2 + polarity, 32 bits relative to a base that moves forward on
+// long streams), padded by 2 pixels on every side; allocated in one place (allocate()).
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "evpipe/core/event.hpp"
+#include "evpipe/denoise/filter.hpp"
+#include "evpipe/denoise/registry.hpp"
+
+namespace evpipe::denoise {
+
+struct SignificanceOptions {
+  double alpha = 5e-4;                      ///< false-alarm rate: share of noise events kept (both tests)
+  double slowest_speed_px_s = 2.0;          ///< slowest edge the edge-line test looks for (T = 1 / it)
+  double edge_precision_px = 0.1;           ///< edge position precision (crossing-time error = it / speed)
+  std::int64_t timing_jitter_us = 2000;     ///< timestamp jitter between neighbouring pixels
+  std::int64_t rate_period_us = 10'000;     ///< BA rate (and thresholds) update period
+  std::int64_t rate_memory_us = 1'000'000;  ///< BA rate estimate's memory (exponential forgetting)
+  double initial_rate_hz = 10.0;            ///< BA rate assumed before the first period closes (conservative)
+  bool edge_line = true;                    ///< the edge-line test (false: recency test alone)
+  std::int64_t recency_max_us = 0;          ///< recency test's longest age (0 = no recency test)
+};
+
+class Significance {
+ public:
+  static constexpr int kRing = 4;
+  static constexpr int kPad = 2;
+
+  Significance(const SensorGeometry& geometry, SignificanceOptions options);
+  [[nodiscard]] bool accept(const Event& e) noexcept;
+  /// >= 1 exactly when kept: the larger of the recency margin max_k A_k / a_(k) and the edge-line margin
+  /// max_m U_m / u_(m) (for a kept event, over the directions examined until the decision was final).
+  [[nodiscard]] float last_score() const noexcept { return score_; }
+  void reset() noexcept;
+  /// noise_rate_hz (current BA estimate), kept_recency, kept_edge_line, line_window_us (U_8).
+  [[nodiscard]] std::vector<ReportItem> report() const;
+
+  [[nodiscard]] double rate_hz() const noexcept { return rate_hz_; }
+  /// Recency thresholds A_1..A_8 and edge-line thresholds U_1..U_8 (µs) for a BA rate.
+  void set_rate(double rate_hz) noexcept;
+  [[nodiscard]] const std::array<std::int32_t, 8>& recency_thresholds_us() const noexcept { return recency_us_; }
+  [[nodiscard]] const std::array<std::int32_t, 8>& line_thresholds_us() const noexcept { return line_us_; }
+
+ private:
+  void allocate();
+  void rebase(std::int64_t t_us) noexcept;
+  void update_rate(std::int64_t t_us) noexcept;
+  /// max_m U_m / u_(m) over the directions' smallest matched ages u, examined until it reaches 1 (kept).
+  [[nodiscard]] float edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept;
+
+  SensorGeometry geometry_;
+  SignificanceOptions options_;
+  std::int64_t stride_;
+  std::vector<std::int32_t> ring_;  // kRing per padded pixel, newest first: (t − base)·2 + polarity
+  std::int64_t base_us_ = 0;
+  bool started_ = false;
+  std::array<std::int32_t, 8> recency_us_{};
+  std::array<std::int32_t, 8> line_us_{};  // U_1..U_8
+  std::array<double, 8> quantile_{};       // q_m: P(Binomial(8, q_m) >= m) = alpha / 2 / 8
+  std::int32_t window_us_ = 0;             // T
+  std::int32_t jitter_us_ = 0;
+  float precision_ = 0.0F;
+  // Rate estimate.
+  double rate_hz_ = 0.0;
+  std::int64_t period_end_us_ = 0;
+  std::int64_t zero_support_ = 0;  // in the current period
+  double zero_acc_ = 0.0;          // forgetting sums
+  double time_acc_s_ = 0.0;
+  std::uint64_t kept_recency_ = 0;
+  std::uint64_t kept_line_ = 0;
+  float score_ = 0.0F;
+};
+
+FilterSpec significance_spec();
+
+}  // namespace evpipe::denoise

@@ -1,0 +1,330 @@
+#include "evpipe/denoise/significance.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace evpipe::denoise {
+
+namespace {
+
+constexpr std::int32_t kNeverTime = -(std::int32_t{1} << 29);  // relative time of "no event"
+constexpr std::int32_t kNever = kNeverTime * 2;                // stored value
+constexpr std::int64_t kRebaseAt = std::int64_t{1} << 29;      // relative µs (about 9 min)
+constexpr std::int64_t kKeepOnRebase = std::int64_t{1} << 24;  // history kept exact on a rebase (about 16 s)
+constexpr std::int32_t kZeroSupportUs = 10'000;                // T0 of the rate estimator
+constexpr int kNeighbours = 8;
+constexpr std::int32_t kAgeCap = std::numeric_limits<std::int32_t>::max() / 4;
+
+/// P(Binomial(n, p) >= k).
+double binomial_sf(int n, double p, int k) noexcept {
+  if (k <= 0) return 1.0;
+  if (k > n) return 0.0;
+  if (p <= 0.0) return 0.0;
+  if (p >= 1.0) return 1.0;
+  double sum = 0.0;
+  for (int i = k; i <= n; ++i) {
+    const double log_c = std::lgamma(n + 1.0) - std::lgamma(i + 1.0) - std::lgamma(n - i + 1.0);
+    sum += std::exp(log_c + i * std::log(p) + (n - i) * std::log1p(-p));
+  }
+  return std::min(1.0, sum);
+}
+
+/// Largest p with P(Binomial(n, p) >= k) <= target (bisection; the tail increases with p).
+double binomial_quantile(int n, int k, double target) noexcept {
+  double lo = 0.0;
+  double hi = 1.0;
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (binomial_sf(n, mid, k) <= target ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+/// Sorting network (19 compare-exchanges) for 8 values.
+void sort8(std::array<std::int32_t, 8>& v) noexcept {
+  const auto cx = [&v](std::size_t i, std::size_t j) {
+    const std::int32_t lo = std::min(v[i], v[j]);
+    const std::int32_t hi = std::max(v[i], v[j]);
+    v[i] = lo;
+    v[j] = hi;
+  };
+  cx(0, 2), cx(1, 3), cx(4, 6), cx(5, 7);
+  cx(0, 4), cx(1, 5), cx(2, 6), cx(3, 7);
+  cx(0, 1), cx(2, 3), cx(4, 5), cx(6, 7);
+  cx(2, 4), cx(3, 5);
+  cx(1, 4), cx(3, 6);
+  cx(1, 2), cx(3, 4), cx(5, 6);
+}
+
+}  // namespace
+
+Significance::Significance(const SensorGeometry& geometry, SignificanceOptions options)
+    : geometry_(geometry), options_(options), stride_(geometry.width + 2 * kPad) {
+  window_us_ = static_cast<std::int32_t>(std::clamp(1e6 / options_.slowest_speed_px_s, 1.0, 1e8));
+  jitter_us_ = static_cast<std::int32_t>(std::clamp<std::int64_t>(options_.timing_jitter_us, 0, 100'000'000));
+  precision_ = static_cast<float>(options_.edge_precision_px);
+  // Both tests' per-m quantiles depend on alpha only: P(Binomial(8, q_m) >= m) = alpha / 2 / 8.
+  for (int m = 1; m <= kNeighbours; ++m) {
+    quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, options_.alpha / 2.0 / kNeighbours);
+  }
+  allocate();
+  reset();
+}
+
+void Significance::allocate() {
+  // The filter's only per-pixel allocation (kRing · 4 bytes per padded pixel).
+  ring_.resize(static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad) * kRing));
+}
+
+void Significance::reset() noexcept {
+  std::fill(ring_.begin(), ring_.end(), kNever);
+  started_ = false;
+  base_us_ = 0;
+  zero_support_ = 0;
+  zero_acc_ = 0.0;
+  time_acc_s_ = 0.0;
+  kept_recency_ = 0;
+  kept_line_ = 0;
+  score_ = 0.0F;
+  set_rate(options_.initial_rate_hz);
+}
+
+void Significance::set_rate(double rate_hz) noexcept {
+  rate_hz_ = std::max(0.0, rate_hz);
+  // Recency: Bonferroni over k = 1..8.
+  for (int k = 1; k <= kNeighbours; ++k) {
+    const double p = quantile_[static_cast<std::size_t>(k - 1)];
+    double a_us = rate_hz_ > 0.0 ? -std::log1p(-p) / rate_hz_ * 1e6 : static_cast<double>(kAgeCap);
+    a_us = std::min(a_us, static_cast<double>(std::min<std::int64_t>(kAgeCap, options_.recency_max_us)));
+    recency_us_[static_cast<std::size_t>(k - 1)] = static_cast<std::int32_t>(a_us);
+  }
+  // Edge line: a direction matches within age U with probability p(U) = 1 − exp(−pairs(U)) under noise,
+  // pairs(U) = (lambda² / 2)·(jitter·U + precision·U² / 2) (each polarity at lambda / 2). U_m solves
+  // p(U_m) = the Binomial(8, ·) quantile for m at alpha / 2 / 8, capped at T.
+  const double T = window_us_ * 1e-6;
+  const double jitter_s = jitter_us_ * 1e-6;
+  const double eps = options_.edge_precision_px;
+  for (int m = 1; m <= kNeighbours; ++m) {
+    double u_s = 0.0;
+    if (options_.edge_line) {
+      const double p = quantile_[static_cast<std::size_t>(m - 1)];
+      const double pairs = -std::log1p(-p);
+      if (rate_hz_ <= 0.0) {
+        u_s = T;
+      } else {
+        const double c = 2.0 * pairs / (rate_hz_ * rate_hz_);  // jitter·U + eps·U²/2 = c
+        u_s = eps > 0.0 ? (-jitter_s + std::sqrt(jitter_s * jitter_s + 2.0 * eps * c)) / eps
+                        : (jitter_s > 0.0 ? c / jitter_s : T);
+        u_s = std::min(u_s, T);
+      }
+    }
+    line_us_[static_cast<std::size_t>(m - 1)] = static_cast<std::int32_t>(u_s * 1e6);
+  }
+}
+
+void Significance::update_rate(std::int64_t t_us) noexcept {
+  // Close every period up to t_us (periods without events count as periods without zero-support events).
+  const double period_s = static_cast<double>(options_.rate_period_us) * 1e-6;
+  const double keep = std::exp(-static_cast<double>(options_.rate_period_us) /
+                               static_cast<double>(std::max<std::int64_t>(1, options_.rate_memory_us)));
+  while (t_us >= period_end_us_) {
+    zero_acc_ = zero_acc_ * keep + static_cast<double>(zero_support_);
+    time_acc_s_ = time_acc_s_ * keep + period_s;
+    zero_support_ = 0;
+    period_end_us_ += options_.rate_period_us;
+    if (t_us - period_end_us_ > options_.rate_memory_us * 20) {  // long silence: forget, restart the periods
+      zero_acc_ = 0.0;
+      time_acc_s_ = 0.0;
+      period_end_us_ = t_us + options_.rate_period_us;
+      return;
+    }
+  }
+  const double pixels = static_cast<double>(geometry_.width) * geometry_.height;
+  const double r0 = zero_acc_ / (time_acc_s_ * pixels);  // zero-support events per pixel·s
+  // Noise alone: r0 = lambda·exp(−8·lambda·T0). Smallest root by fixed-point iteration from lambda = r0 (increases
+  // monotonically to it); no root when r0 > 1 / (8·T0·e): then the maximiser 1 / (8·T0).
+  const double c = kNeighbours * kZeroSupportUs * 1e-6;
+  double lambda = r0;
+  if (r0 * c * std::exp(1.0) >= 1.0) {
+    lambda = 1.0 / c;
+  } else {
+    for (int it = 0; it < 200; ++it) {
+      const double next = r0 * std::exp(c * lambda);
+      if (std::abs(next - lambda) <= 1e-9 * next) {
+        lambda = next;
+        break;
+      }
+      lambda = next;
+    }
+  }
+  set_rate(lambda);
+}
+
+void Significance::rebase(std::int64_t t_us) noexcept {
+  const std::int64_t shift = (t_us - base_us_) - kKeepOnRebase;
+  for (auto& v : ring_) {
+    if (v == kNever) continue;
+    const std::int64_t time = static_cast<std::int64_t>(v >> 1) - shift;
+    v = time < kNeverTime / 2 ? kNever : static_cast<std::int32_t>(time * 2 + (v & 1));
+  }
+  base_us_ += shift;
+}
+
+float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept {
+  static constexpr std::array<std::int8_t, 8> kDx = {-1, 0, 1, -1, 1, -1, 0, 1};
+  static constexpr std::array<std::int8_t, 8> kDy = {-1, -1, -1, 0, 0, 1, 1, 1};
+  const std::int32_t window = line_us_[7];
+  std::array<std::int32_t, 8> sorted{};  // matched ages so far, ascending
+  int n = 0;
+  float ratio = 0.0F;
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::int64_t off = kDy[i] * stride_ + kDx[i];
+    const std::int32_t* r1 = ring_.data() + (static_cast<std::int64_t>(centre) - off) * kRing;
+    const std::int32_t* r2 = ring_.data() + (static_cast<std::int64_t>(centre) - 2 * off) * kRing;
+    // Two pointers: the window [(2 − ε)s − δ₀, (2 + ε)s + δ₀] only moves later as s grows (entries newest first),
+    // so r2 is walked once per direction: at most 2·kRing steps.
+    std::int32_t found = kAgeCap;
+    int b = 0;
+    for (int a = 0; a < kRing && b < kRing; ++a) {
+      const std::int32_t v1 = r1[a];
+      const std::int32_t s1 = now - (v1 >> 1);
+      if (s1 > window) break;  // newest first: the rest is older
+      if ((v1 & 1) != polarity) continue;
+      const std::int32_t tol = jitter_us_ + static_cast<std::int32_t>(precision_ * static_cast<float>(s1));
+      const std::int32_t lo = 2 * s1 - tol;
+      const std::int32_t hi = 2 * s1 + tol;
+      while (b < kRing && now - (r2[b] >> 1) < lo) ++b;
+      for (int j = b; j < kRing; ++j) {
+        const std::int32_t v2 = r2[j];
+        if (now - (v2 >> 1) > hi) break;
+        if ((v2 & 1) == polarity) {
+          found = s1;
+          break;
+        }
+      }
+      if (found != kAgeCap) break;
+    }
+    if (found == kAgeCap) continue;
+    // Insert, then test u_(m) <= U_m over the matches so far: once it holds for some m it holds for the full
+    // sorted list too (its m-th smallest can only be smaller), so the decision is final.
+    int j = n++;
+    for (; j > 0 && sorted[static_cast<std::size_t>(j - 1)] > found; --j) {
+      sorted[static_cast<std::size_t>(j)] = sorted[static_cast<std::size_t>(j - 1)];
+    }
+    sorted[static_cast<std::size_t>(j)] = found;
+    bool decided = false;
+    for (int m = 0; m < n; ++m) {
+      const auto mu = static_cast<std::size_t>(m);
+      decided |= line_us_[mu] > 0 && sorted[mu] <= line_us_[mu];  // the same as the ratio below reaching 1
+    }
+    if (decided) break;
+  }
+  for (int m = 0; m < n; ++m) {
+    const auto mu = static_cast<std::size_t>(m);
+    ratio = std::max(ratio, static_cast<float>(line_us_[mu]) / static_cast<float>(std::max(sorted[mu], 1)));
+  }
+  return ratio;
+}
+
+bool Significance::accept(const Event& e) noexcept {
+  if (!geometry_.contains(e.x, e.y)) {
+    score_ = 0.0F;
+    return false;
+  }
+  if (!started_) {
+    started_ = true;
+    base_us_ = e.t_us;
+    period_end_us_ = e.t_us + options_.rate_period_us;
+  }
+  if (e.t_us >= period_end_us_) update_rate(e.t_us);
+  if (e.t_us - base_us_ >= kRebaseAt) rebase(e.t_us);
+  const auto now = static_cast<std::int32_t>(e.t_us - base_us_);
+  const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
+  const std::int32_t* ring = ring_.data();
+  const auto s = static_cast<std::int64_t>(stride_);
+  const std::int64_t c = static_cast<std::int64_t>(centre);
+  const std::array<std::int64_t, 8> nb = {c - s - 1, c - s, c - s + 1, c - 1, c + 1, c + s - 1, c + s, c + s + 1};
+  // The 5×5 block's rings (5 rows of 5·kRing·4 bytes): start every cache line now, the tests below read them in
+  // an order that jumps between rows.
+  for (std::int64_t dy = -2; dy <= 2; ++dy) {
+    const char* row = reinterpret_cast<const char*>(ring + (c + dy * s - 2) * kRing);
+    __builtin_prefetch(row);
+    __builtin_prefetch(row + 5 * kRing * sizeof(std::int32_t) - 1);
+  }
+  std::array<std::int32_t, 8> age{};
+  std::int32_t newest = kAgeCap;
+  for (std::size_t i = 0; i < 8; ++i) {
+    age[i] = std::min(kAgeCap, now - (ring[nb[i] * kRing] >> 1));
+    newest = std::min(newest, age[i]);
+  }
+  if (newest > kZeroSupportUs) ++zero_support_;
+  float ratio = 0.0F;
+  if (options_.recency_max_us > 0) {
+    sort8(age);
+    for (std::size_t k = 0; k < 8; ++k) {
+      ratio = std::max(ratio, static_cast<float>(recency_us_[k]) / static_cast<float>(std::max(age[k], 1)));
+    }
+  }
+  bool keep = ratio >= 1.0F;
+  float score = ratio;
+  const int polarity = e.polarity ? 1 : 0;
+  if (keep) {
+    ++kept_recency_;
+  } else if (options_.edge_line) {
+    const float line = edge_lines(centre, now, polarity);
+    score = std::max(score, line);
+    if (line >= 1.0F) {
+      keep = true;
+      ++kept_line_;
+    }
+  }
+  score_ = score;
+  // Stamp the event into its pixel's ring (newest first), kept or not.
+  std::int32_t* own = ring_.data() + centre * kRing;
+  std::copy_backward(own, own + kRing - 1, own + kRing);
+  own[0] = now * 2 + polarity;
+  return keep;
+}
+
+std::vector<ReportItem> Significance::report() const {
+  return {{"noise_rate_hz", rate_hz_},
+          {"kept_recency", static_cast<double>(kept_recency_)},
+          {"kept_edge_line", static_cast<double>(kept_line_)},
+          {"line_window_us", static_cast<double>(line_us_[7])}};
+}
+
+FilterSpec significance_spec() {
+  return {"significance",
+          "keeps events whose support is improbable under the estimated BA rate (false-alarm rate alpha); causal",
+          [](Params& p, const SensorGeometry& g) -> std::unique_ptr<Filter> {
+            SignificanceOptions o;
+            o.alpha = p.real("alpha", o.alpha, "false-alarm rate: share of background-activity events kept");
+            p.require_range("alpha", o.alpha, 0.0, 0.5, true, false);
+            o.slowest_speed_px_s = p.real("slowest_speed_px_s", o.slowest_speed_px_s,
+                                          "slowest edge speed the edge-line test looks for (window = 1 / it)");
+            p.require_range("slowest_speed_px_s", o.slowest_speed_px_s, 0.01, 1e6);
+            o.edge_precision_px = p.real("edge_precision_px", o.edge_precision_px,
+                                         "edge position precision in pixels (crossing-time tolerance = it / speed)");
+            p.require_range("edge_precision_px", o.edge_precision_px, 0.0, 1.0);
+            o.timing_jitter_us =
+                p.integer("timing_jitter_us", o.timing_jitter_us, "timestamp jitter between neighbouring pixels (us)");
+            p.require_range("timing_jitter_us", static_cast<double>(o.timing_jitter_us), 0.0, 1e6);
+            o.rate_period_us =
+                p.integer("rate_period_us", o.rate_period_us, "background-activity rate update period (us)");
+            p.require_positive("rate_period_us", static_cast<double>(o.rate_period_us));
+            o.rate_memory_us =
+                p.integer("rate_memory_us", o.rate_memory_us, "memory of the background-activity rate estimate (us)");
+            p.require_positive("rate_memory_us", static_cast<double>(o.rate_memory_us));
+            o.initial_rate_hz = p.real("initial_rate_hz", o.initial_rate_hz,
+                                       "background-activity rate (Hz/px) assumed until the first period closes");
+            p.require_range("initial_rate_hz", o.initial_rate_hz, 0.0, 1e4);
+            o.recency_max_us = p.integer("recency_max_us", o.recency_max_us,
+                                         "longest neighbour age the recency test uses (us; 0 = no recency test)");
+            p.require_range("recency_max_us", static_cast<double>(o.recency_max_us), 0.0, 1e9);
+            o.edge_line = p.boolean("edge_line", o.edge_line, "edge-line test for slow edges (false: recency only)");
+            return std::make_unique<PerEventFilter<Significance>>("significance", g, o);
+          }};
+}
+
+}  // namespace evpipe::denoise

@@ -1,0 +1,198 @@
+// Significance filter: each term on hand-built event sets (isolated event, slow edge, hot pixel, burst, recency),
+// the thresholds' noise model, the BA rate estimate, and stream = batch.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "evpipe/denoise/registry.hpp"
+#include "evpipe/denoise/significance.hpp"
+
+namespace evpipe::denoise {
+namespace {
+
+SignificanceOptions at_rate(double rate_hz) {
+  SignificanceOptions o;
+  o.initial_rate_hz = rate_hz;
+  o.rate_period_us = 1'000'000'000;  // keep the initial rate for the whole test
+  return o;
+}
+
+/// A straight edge moving along +x at `speed_px_s`: column x fires at t0 + x / speed, rows y0..y0+rows-1.
+std::vector<Event> edge(double speed_px_s, int x0, int columns, int y0, int rows, std::int64_t t0_us) {
+  std::vector<Event> ev;
+  for (int c = 0; c < columns; ++c) {
+    const auto t = t0_us + static_cast<std::int64_t>(std::llround(c / speed_px_s * 1e6));
+    for (int r = 0; r < rows; ++r) {
+      ev.push_back({t, static_cast<std::uint16_t>(x0 + c), static_cast<std::uint16_t>(y0 + r), true});
+    }
+  }
+  return ev;
+}
+
+TEST(Significance, IsolatedEventIsDropped) {
+  Significance f(kDavis346, at_rate(1.0));
+  EXPECT_FALSE(f.accept({1'000'000, 100, 100, true}));
+  EXPECT_LT(f.last_score(), 1.0F);
+  // A lone neighbour a few ms earlier is what noise gives: still dropped (one neighbour is no line).
+  EXPECT_FALSE(f.accept({1'003'000, 101, 100, true}));
+}
+
+TEST(Significance, SlowEdgeIsKeptOnceTwoColumnsAreBehindIt) {
+  // 3 px/s: a column every 333 ms. From the third column on, every interior event has p − d and p − 2d on exact
+  // lines behind it (and, along the edge, the rows above it at the same time).
+  Significance f(kDavis346, at_rate(1.0));
+  const auto ev = edge(3.0, 50, 5, 80, 10, 1'000'000);
+  int kept_late = 0;
+  int late = 0;
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    const bool k = f.accept(ev[i]);
+    if (i == 0) {
+      EXPECT_FALSE(k);  // no history at all
+    }
+    if (ev[i].x >= 52 && ev[i].y >= 82 && ev[i].y <= 87) {
+      ++late;
+      kept_late += k ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(kept_late, late);
+}
+
+TEST(Significance, SlowEdgeNeedsPolarityAndTiming) {
+  // Two columns of a 3 px/s edge, then one event of the third column: kept when the lines through it are exact
+  // (same polarity, times t − s and t − 2s); dropped when the middle column has the other polarity or is 80 ms
+  // off (tolerance at s = 333 ms: 2 ms + 0.1 · 333 ms = 35 ms).
+  for (const int variant : {0, 1, 2}) {
+    Significance f(kDavis346, at_rate(1.0));
+    auto ev = edge(3.0, 50, 2, 80, 10, 1'000'000);
+    for (auto& e : ev) {
+      if (e.x == 51 && variant == 1) e.polarity = false;
+      if (e.x == 51 && variant == 2) e.t_us += 80'000;
+    }
+    for (const auto& e : ev) (void)f.accept(e);
+    const bool kept = f.accept({1'000'000 + 666'667, 52, 84, true});
+    EXPECT_EQ(kept, variant == 0) << "variant " << variant;
+  }
+}
+
+TEST(Significance, HotPixelNeitherPassesNorSupports) {
+  // A pixel firing at 200 Hz: its own events never support it, and one pixel cannot make a line for a neighbour.
+  Significance f(kDavis346, at_rate(1.0));
+  int kept = 0;
+  for (int i = 0; i < 400; ++i) {
+    kept += f.accept({1'000'000 + i * 5'000, 200, 150, i % 2 == 0}) ? 1 : 0;
+  }
+  EXPECT_EQ(kept, 0);
+  EXPECT_FALSE(f.accept({3'001'000, 201, 150, true}));
+  EXPECT_FALSE(f.accept({3'002'000, 202, 150, true}));
+}
+
+TEST(Significance, BurstAtOnePixelIsNotSupport) {
+  // A burst of 8 events at one pixel (refractory-free flicker) followed by an event beside it.
+  Significance f(kDavis346, at_rate(5.0));
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_FALSE(f.accept({1'000'000 + i * 10, 60, 60, true}));
+  }
+  EXPECT_FALSE(f.accept({1'000'200, 61, 60, true}));
+}
+
+TEST(Significance, FastEdgeIsKept) {
+  Significance f(kDavis346, at_rate(10.0));
+  const auto ev = edge(200.0, 20, 20, 100, 20, 1'000'000);
+  int kept = 0;
+  for (const auto& e : ev) kept += f.accept(e) ? 1 : 0;
+  // All but the first two columns (no history) and the border rows.
+  EXPECT_GE(kept, 18 * 18);
+}
+
+TEST(Significance, ThresholdsFollowTheNoiseModel) {
+  Significance f(kDavis346, at_rate(1.0));
+  const auto low = f.line_thresholds_us();
+  f.set_rate(10.0);
+  const auto high = f.line_thresholds_us();
+  for (std::size_t m = 0; m < 8; ++m) {
+    EXPECT_LE(high[m], low[m]);  // more noise: shorter ages needed
+    if (m > 0) {
+      EXPECT_GE(low[m], low[m - 1]);
+    }
+  }
+  EXPECT_LE(low[7], 500'000);  // capped at 1 / slowest speed
+  // Recency test off by default; with a cap, its thresholds are at most the cap.
+  SignificanceOptions o = at_rate(1.0);
+  o.recency_max_us = 20'000;
+  Significance g(kDavis346, o);
+  for (const auto a : g.recency_thresholds_us()) EXPECT_LE(a, 20'000);
+  EXPECT_GT(g.recency_thresholds_us()[7], 0);
+}
+
+TEST(Significance, RecencyTermKeepsDenseSupport) {
+  SignificanceOptions o = at_rate(1.0);
+  o.recency_max_us = 20'000;
+  o.edge_line = false;
+  Significance f(kDavis346, o);
+  // All 8 neighbours fired within the last millisecond (different polarities, no line): improbable for noise.
+  std::int64_t t = 1'000'000;
+  for (const auto& [dx, dy] : {std::pair{-1, -1}, {0, -1}, {1, -1}, {-1, 0}, {1, 0}, {-1, 1}, {0, 1}, {1, 1}}) {
+    (void)f.accept({t, static_cast<std::uint16_t>(100 + dx), static_cast<std::uint16_t>(100 + dy), (dx + dy) % 2 == 0});
+    t += 100;
+  }
+  EXPECT_TRUE(f.accept({t, 100, 100, true}));
+}
+
+TEST(Significance, RateEstimateAndFalseAlarmsOnPureNoise) {
+  // Uniform BA at 5 Hz/px over 2 s: the estimate converges to 5 and at most ~alpha of the events pass.
+  std::mt19937_64 rng(7);
+  const double rate = 5.0;
+  const auto n = static_cast<std::size_t>(rate * kDavis346.width * kDavis346.height * 2.0);
+  std::vector<Event> ev(n);
+  std::uniform_int_distribution<int> x(0, kDavis346.width - 1), y(0, kDavis346.height - 1);
+  std::uniform_int_distribution<std::int64_t> t(0, 2'000'000);
+  std::bernoulli_distribution pol(0.5);
+  for (auto& e : ev) e = {t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), pol(rng)};
+  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  SignificanceOptions o;
+  Significance f(kDavis346, o);
+  std::size_t kept = 0;
+  for (const auto& e : ev) kept += f.accept(e) ? 1 : 0;
+  EXPECT_NEAR(f.rate_hz(), rate, 0.5);
+  EXPECT_LE(static_cast<double>(kept), 2.0 * o.alpha * static_cast<double>(n) + 10.0);
+}
+
+TEST(Significance, StreamEqualsBatchAndSurvivesARebase) {
+  std::mt19937_64 rng(3);
+  std::vector<Event> ev;
+  // Noise plus an edge, then a jump of 10 minutes (forces a rebase of the 32-bit times), then the same again.
+  for (const std::int64_t base : {std::int64_t{0}, std::int64_t{600'000'000}}) {
+    auto e = edge(40.0, 30, 30, 40, 30, base + 100'000);
+    std::uniform_int_distribution<int> x(0, 345), y(0, 259);
+    std::uniform_int_distribution<std::int64_t> t(base, base + 1'000'000);
+    for (int i = 0; i < 50'000; ++i) {
+      e.push_back({t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), i % 3 == 0});
+    }
+    std::sort(e.begin(), e.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    ev.insert(ev.end(), e.begin(), e.end());
+  }
+  auto batch = make_filter("significance", {}, kDavis346);
+  auto stream = make_filter("significance", {}, kDavis346);
+  const auto a = run_filter(*batch, ev);
+  const auto b = run_filter(*stream, ev, 777);
+  EXPECT_EQ(a.keep, b.keep);
+  EXPECT_EQ(a.score, b.score);
+  EXPECT_GT(count_kept(a), 1000U);  // the edges survive, after the jump too
+  std::size_t late = 0;
+  for (std::size_t i = ev.size() / 2; i < ev.size(); ++i) late += a.keep[i];
+  EXPECT_GT(late, 500U);
+}
+
+TEST(Significance, ListedWithItsParameters) {
+  const FilterSpec* s = find_filter("significance");
+  ASSERT_NE(s, nullptr);
+  const auto params = describe(*s);
+  EXPECT_TRUE(std::any_of(params.begin(), params.end(), [](const ParamInfo& p) { return p.key == "alpha"; }));
+  EXPECT_THROW((void)make_filter("significance", {{"alpha", "0"}}, kDavis346), std::invalid_argument);
+  EXPECT_THROW((void)make_filter("significance", {{"alpha", "0.9"}}, kDavis346), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace evpipe::denoise
