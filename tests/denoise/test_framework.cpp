@@ -393,7 +393,7 @@ TEST(PixelBudget, EveryFilterRefusesASensorBeyondTheLargestAndBuildsAtIt) {
     }
   }
   // The largest accepted sensor: the filters that keep per-pixel state stay within the budget.
-  for (const char* name : {"baf", "ynoise", "stcf", "hotpixel", "curvature"}) {
+  for (const char* name : {"baf", "ynoise", "stcf", "hotpixel", "curvature", "significance"}) {
     SCOPED_TRACE(name);
     EXPECT_NO_THROW((void)make_filter(name, {}, SensorGeometry{kMaxSensorSide, kMaxSensorSide}));
   }
