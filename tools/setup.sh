@@ -22,6 +22,8 @@ PACKAGES=(
   systemd iproute2
   # evpipe-view's end-to-end test and the docs screenshot (a virtual X display)
   xvfb
+  # the Debian package and its release check (cpack DEB: dpkg-shlibdeps; tools/check_deb.sh: lintian, debootstrap)
+  dpkg-dev fakeroot lintian debootstrap
   # handy for fixtures and benches
   lz4 zstd
 )

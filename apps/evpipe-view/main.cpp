@@ -7,7 +7,7 @@
 // every preview received.
 //
 // Exit status: 0 done, 1 LCM error, no preview within --timeout, or only messages of another type on the channel,
-// 2 usage error (also no display for a window).
+// 2 usage error (also no display for a window, an invalid --lcm-url).
 
 #include <fmt/format.h>
 #include <netdb.h>
@@ -31,6 +31,7 @@
 #include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/lcm_capture.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
+#include "evpipe/transport/lcm_url.hpp"
 #include "evpipe/transport/preview.hpp"
 #include "evpipe/view/render.hpp"
 #include "evpipe/view/video.hpp"
@@ -132,6 +133,10 @@ int run(const Cli& cli) {
     return 2;
   }
   const std::string url = transport::effective_lcm_url(cli.url);
+  if (const auto why = transport::check_lcm_url(url, false)) {  // e.g. file://...?mode=w would truncate a log
+    std::fprintf(stderr, "evpipe-view: %s\n", why->c_str());
+    return 2;
+  }
   transport::LcmCapture capture(cli.url);
   if (!capture.good()) {
     std::fprintf(stderr,

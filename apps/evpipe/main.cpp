@@ -145,11 +145,17 @@ int run(const Cli& cli) {
     cfg.validate();
     if (!cfg.pose.ground_truth.empty() && cfg.source.replay.empty())
       throw config::ConfigError("pose.ground_truth (--ground-truth): only for a replay (--replay)");
+    // preview_t on the pose or statistics channel would reach the controller's subscription as another type.
+    if (cfg.lcm.preview &&
+        (cfg.lcm.preview_channel == cfg.lcm.pose_channel || cfg.lcm.preview_channel == cfg.lcm.stats_channel))
+      throw config::ConfigError(
+          fmt::format("lcm.preview_channel: '{}' is also the pose or statistics channel", cfg.lcm.preview_channel));
   } catch (const config::ConfigError& e) {
     std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(cfg.log.level));
+  app::set_libcaer_log_level(cfg.log.level);  // libcaer's own log follows --log-level / log.level
   // The program's input files: no output (poses CSV, LCM log) may be one of them (docs/operations.md, "Files").
   const std::vector<std::string> inputs = {cli.config_path, cfg.source.replay, cfg.pose.camera,
                                            cfg.pose.model,  cfg.pose.prior,    cfg.pose.ground_truth};
@@ -198,7 +204,7 @@ int run(const Cli& cli) {
         source = std::move(reader);
       }
     } else {
-      source = app::open_live_source(cfg.device);
+      source = app::open_live_source(cfg.device, cfg.log.level);
     }
   } catch (const SourceError& e) {
     std::fprintf(stderr, "evpipe: %s\n", e.what());
@@ -244,7 +250,9 @@ int run(const Cli& cli) {
     }
   }
   app::RawTap* tap = nullptr;
+  EventSource* tapped = nullptr;  // the source under the tap: the pipeline still sees the camera / pacer in it
   if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
+    tapped = source.get();
     auto t = std::make_unique<app::RawTap>(std::move(source));
     tap = t.get();
     source = std::move(t);
@@ -296,6 +304,7 @@ int run(const Cli& cli) {
 
   pipeline::PipelineOptions po;
   po.mode = live ? pipeline::Mode::live : pipeline::Mode::replay;
+  po.wrapped_source = tapped;
   po.window_us = cfg.window.length_us;
   po.hop_us = cfg.window.hop_us;
   po.batch_queue_capacity = static_cast<std::size_t>(cfg.pipeline.source_queue_packets);
@@ -309,6 +318,21 @@ int run(const Cli& cli) {
   spdlog::debug("denoise: {} thread(s)", po.denoise_threads);
   app::AppSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
   std::unique_ptr<app::PreviewWorker> preview;
+  if (!cli.video.empty()) {
+    // Checked again now that the poses CSV and the LCM log exist: the video must not overwrite them either (a log
+    // that did not exist yet passed the first check by name).
+    std::vector<std::string> files = inputs;
+    files.push_back(cfg.pose.poses_out);
+    if (transport::LcmUrl u; publisher && publisher->writes_log() &&
+                             !transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true, &u))
+      files.push_back(u.target);
+    try {
+      check_output_file(cli.video, files);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "evpipe: configuration error: --video: %s\n", e.what());
+      return 2;
+    }
+  }
   if (tap) {
     app::PreviewOptions vo;
     vo.hz = cfg.lcm.preview_hz;
@@ -468,7 +492,8 @@ int main(int argc, char** argv) {
 
   Cli cli;
   CLI::App app{"evpipe: DAVIS346 event-camera pipeline (replay a recording, or read the camera over USB)"};
-  app.set_version_flag("--version", "evpipe 0.1.0");
+  // "evpipe <version>" and the libcaer it was built with ("libcaer: 3.3.15" or "libcaer: stub: no camera support").
+  app.set_version_flag("--version", std::string("evpipe " EVPIPE_VERSION "\n") + evpipe::app::libcaer_version_line());
   app.add_option("--replay", cli.replay, "Replay a recording (AEDAT 2.0/3.1/4.0 or text) instead of the camera");
   app.add_option("--config", cli.config_path, "Run configuration (YAML); command-line options override it")
       ->check(CLI::ExistingFile);

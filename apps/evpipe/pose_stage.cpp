@@ -11,7 +11,11 @@
 namespace evpipe::app {
 
 std::vector<std::string> pose_csv_extra_columns() {
-  return {"status", "inliers", "sigma_px"};
+  // The contract of issue 21 (docs/operations.md): status, inliers, sigma_px, the time of the last measurement,
+  // then the 6x6 covariance row-major (rx ry rz [rad] tx ty tz [m], as pose_t's; empty cells when unknown).
+  std::vector<std::string> columns = {"status", "inliers", "sigma_px", "t_last_update_us"};
+  for (int i = 0; i < 36; ++i) columns.push_back(fmt::format("cov_{}", i));
+  return columns;
 }
 
 std::unique_ptr<PoseStage> PoseStage::create(const config::RunConfig& cfg, std::span<const std::string> inputs) {
@@ -163,8 +167,10 @@ pose::PoseEstimate PoseStage::process(const EventWindow& window) {
 
 void PoseStage::write(const pose::PoseEstimate& e) {
   if (!csv_ || !e.pose_valid) return;
-  const std::vector<std::string> extra = {std::string(pose::to_string(e.status)), fmt::format("{}", e.inliers),
-                                          fmt::format("{:.4f}", e.sigma_px)};
+  std::vector<std::string> extra = {std::string(pose::to_string(e.status)), fmt::format("{}", e.inliers),
+                                    fmt::format("{:.4f}", e.sigma_px), fmt::format("{}", e.t_last_update_us)};
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j) extra.push_back(e.covariance_known ? fmt::format("{:.6e}", e.covariance(i, j)) : "");
   csv_->write({e.t_us, e.T_cam_model}, extra);
 }
 
@@ -172,7 +178,9 @@ PoseSummary PoseStage::summary() const {
   PoseSummary s = summary_;
   const auto& c = estimator_.counters();
   s.windows = c.windows;
-  for (int i = 0; i < 3; ++i) s.windows_by_status[i] = c.windows_by_status[i];
+  for (int i = 0; i < 4; ++i) s.windows_by_status[i] = c.windows_by_status[i];
+  s.holds = c.holds;
+  s.hold_resumes = c.hold_resumes;
   s.init_attempts = c.init_attempts;
   s.init_successes = c.init_successes;
   s.losses = c.losses;

@@ -24,10 +24,11 @@ struct PoseSummary {
   bool enabled = false;
   std::uint64_t windows = 0;
   std::uint64_t valid_poses = 0;
-  std::uint64_t windows_by_status[3] = {0, 0, 0};
+  std::uint64_t windows_by_status[4] = {0, 0, 0, 0};  ///< indexed by pose::TrackStatus
   std::uint64_t init_attempts = 0, init_successes = 0, losses = 0;
-  double first_init_ms = 0;  ///< compute time of the first successful initialisation attempt
-  bool init_worker = false;  ///< attempts ran on a worker thread
+  std::uint64_t holds = 0, hold_resumes = 0;  ///< tracking → holding, holding → tracking
+  double first_init_ms = 0;                   ///< compute time of the first successful initialisation attempt
+  bool init_worker = false;                   ///< attempts ran on a worker thread
   /// Pose-thread compute time per valid window (for percentiles): tracking updates, and with the worker also the
   /// window that applies an attempt (its catch-up included); not an attempt run in line.
   std::vector<double> update_ms;

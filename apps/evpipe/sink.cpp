@@ -12,7 +12,7 @@ pose::PoseEstimate PoseProcessor::process(const EventWindow& window) {
   if (stage_) {
     estimate = stage_->process(window);
   } else {
-    estimate.t_us = window.t1_us;
+    estimate.t_us = window.t0_us + (window.t1_us - window.t0_us) / 2;  // the window's middle, as the pose stage's
     estimate.window_events = window.size();
     estimate.note = "no pose stage (no --camera/--model)";
   }
@@ -28,6 +28,7 @@ namespace {
 transport::PoseRecord to_record(const pose::PoseEstimate& e, bool connected) {
   transport::PoseRecord r;
   r.t_us = e.t_us;
+  r.t_last_update_us = e.t_last_update_us;
   r.status = static_cast<transport::TrackingStatus>(e.status);
   r.pose_valid = e.pose_valid;
   r.T_cam_model = e.T_cam_model;

@@ -88,9 +88,14 @@ std::string format_text(const RunSummary& s) {
     line("poses",
          fmt::format("{} valid of {} windows ({:.1f} Hz of sensor time)", p.valid_poses, p.windows, update_rate_hz(p)));
     line("pose status",
-         fmt::format("initialising {:.1f} %, tracking {:.1f} %, lost {:.1f} %",
+         fmt::format("initialising {:.1f} %, tracking {:.1f} %, holding {:.1f} %, lost {:.1f} %",
                      100 * share(p.windows_by_status[0], p.windows), 100 * share(p.windows_by_status[1], p.windows),
-                     100 * share(p.windows_by_status[2], p.windows)));
+                     100 * share(p.windows_by_status[3], p.windows), 100 * share(p.windows_by_status[2], p.windows)));
+    if (p.holds > 0) {
+      line("standstill", fmt::format("{} holds (the target still, its last measured pose repeated), {} resumed "
+                                     "tracking from the held pose",
+                                     p.holds, p.hold_resumes));
+    }
     line("initialisation",
          fmt::format("{} of {} attempts succeeded, {} losses; first took {:.1f} ms ({})", p.init_successes,
                      p.init_attempts, p.losses, p.first_init_ms, p.init_worker ? "on a worker thread" : "in line"));
@@ -131,14 +136,16 @@ std::string pose_json(const PoseSummary& p) {
   if (!p.enabled) return ",\"pose_enabled\":false";
   return fmt::format(
       ",\"pose_enabled\":true,\"pose_windows\":{},\"pose_updates\":{},\"pose_rate_hz\":{:.3f},"
-      "\"pose_initialising_share\":{:.6f},\"pose_tracking_share\":{:.6f},\"pose_lost_share\":{:.6f},"
+      "\"pose_initialising_share\":{:.6f},\"pose_tracking_share\":{:.6f},\"pose_holding_share\":{:.6f},"
+      "\"pose_lost_share\":{:.6f},\"pose_holds\":{},\"pose_hold_resumes\":{},"
       "\"pose_init_attempts\":{},\"pose_init_successes\":{},\"pose_losses\":{},\"pose_init_ms\":{:.3f},"
       "\"pose_init_worker\":{},"
       "\"pose_update_ms_p50\":{:.4f},\"pose_update_ms_p99\":{:.4f},\"pose_update_ms_max\":{:.4f},\"pose_note\":{}",
       p.windows, p.valid_poses, update_rate_hz(p), share(p.windows_by_status[0], p.windows),
-      share(p.windows_by_status[1], p.windows), share(p.windows_by_status[2], p.windows), p.init_attempts,
-      p.init_successes, p.losses, p.first_init_ms, p.init_worker, percentile(p.update_ms, 0.5),
-      percentile(p.update_ms, 0.99), percentile(p.update_ms, 1.0), json_quote(p.last_note));
+      share(p.windows_by_status[1], p.windows), share(p.windows_by_status[3], p.windows),
+      share(p.windows_by_status[2], p.windows), p.holds, p.hold_resumes, p.init_attempts, p.init_successes, p.losses,
+      p.first_init_ms, p.init_worker, percentile(p.update_ms, 0.5), percentile(p.update_ms, 0.99),
+      percentile(p.update_ms, 1.0), json_quote(p.last_note));
 }
 }  // namespace
 

@@ -218,18 +218,17 @@ std::vector<camera::Pose> load_symmetries(const Options& o) {
   return out;
 }
 
-/// --errors-out: one row per evaluated pose.
-void write_errors(const std::string& path, const metrics::TrajectoryEval& r) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) throw std::runtime_error(path + ": cannot open for writing");
-  f << "t_us,status,confident,wrong,error_mm,rotation_deg,ex_mm,ey_mm,ez_mm,nees,symmetry\n";
+/// --errors-out: one row per evaluated pose; never one of the inputs (refused before anything is truncated).
+void write_errors(const std::string& path, const metrics::TrajectoryEval& r, const std::vector<std::string>& inputs) {
+  UniqueFile f = open_output_file(path, inputs);
+  fmt::print(f.get(), "t_us,status,confident,wrong,error_mm,rotation_deg,ex_mm,ey_mm,ez_mm,nees,symmetry\n");
   for (const auto& s : r.samples) {
-    f << fmt::format("{},{},{},{},{:.4f},{:.5f},{:.4f},{:.4f},{:.4f},{},{}\n", s.t_us, s.status, s.confident ? 1 : 0,
-                     s.wrong ? 1 : 0, s.error_mm.norm(), s.rotation_error_deg, s.error_mm.x(), s.error_mm.y(),
-                     s.error_mm.z(), s.nees ? fmt::format("{:.4f}", *s.nees) : std::string(), s.symmetry_index);
+    fmt::print(f.get(), "{},{},{},{},{:.4f},{:.5f},{:.4f},{:.4f},{:.4f},{},{}\n", s.t_us, s.status, s.confident ? 1 : 0,
+               s.wrong ? 1 : 0, s.error_mm.norm(), s.rotation_error_deg, s.error_mm.x(), s.error_mm.y(), s.error_mm.z(),
+               s.nees ? fmt::format("{:.4f}", *s.nees) : std::string(), s.symmetry_index);
   }
-  f.close();
-  if (!f) throw std::runtime_error(path + ": write failed");
+  const bool failed = std::ferror(f.get()) != 0;
+  if (std::fclose(f.release()) != 0 || failed) throw std::runtime_error(path + ": write failed");
 }
 
 int run(const Options& o) {
@@ -261,9 +260,13 @@ int run(const Options& o) {
                                          o.truth, time_range(truth), time_range(estimate)));
   }
 
-  if (!o.errors_out.empty()) write_errors(o.errors_out, r);
+  const std::vector<std::string> inputs = {o.estimate, o.truth, o.model,
+                                           o.symmetry == "planar-rect" ? std::string() : o.symmetry};
+  if (!o.errors_out.empty()) write_errors(o.errors_out, r, inputs);
   if (!o.png.empty()) {  // first: a failure leaves no partial report on stdout
-    evpipe::check_output_file(o.png, std::vector<std::string>{o.estimate, o.truth});
+    auto files = inputs;
+    files.push_back(o.errors_out);  // an output already written is not overwritten either
+    evpipe::check_output_file(o.png, files);
     evpose_eval::PlotInput in;
     in.truth = truth;
     in.eval = &r;

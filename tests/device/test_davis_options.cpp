@@ -125,5 +125,29 @@ TEST(DavisOptions, Names) {
   EXPECT_EQ(log_level_name(LogLevel::error), "error");
 }
 
+// --log-level / log.level names (spdlog's) map onto libcaer's syslog levels.
+TEST(DavisOptions, LogLevelFromTheApplicationsName) {
+  EXPECT_EQ(log_level_from_name("trace"), LogLevel::debug);
+  EXPECT_EQ(log_level_from_name("debug"), LogLevel::debug);
+  EXPECT_EQ(log_level_from_name("info"), LogLevel::info);
+  EXPECT_EQ(log_level_from_name("warn"), LogLevel::warning);
+  EXPECT_EQ(log_level_from_name("warning"), LogLevel::warning);
+  EXPECT_EQ(log_level_from_name("error"), LogLevel::error);
+  EXPECT_EQ(log_level_from_name("err"), LogLevel::error);
+  EXPECT_EQ(log_level_from_name("critical"), LogLevel::critical);
+  EXPECT_EQ(log_level_from_name("off"), LogLevel::emergency);
+  EXPECT_EQ(log_level_from_name("bogus"), LogLevel::notice);
+}
+
+// evpipe --version's libcaer line: the compiled-against version, or the stub's statement.
+TEST(DavisOptions, LibcaerVersionSaysWhichLibcaer) {
+  const std::string v(libcaer_version());
+  if (using_real_libcaer()) {
+    EXPECT_TRUE(!v.empty() && v.find_first_not_of("0123456789.") == std::string::npos) << v;
+  } else {
+    EXPECT_EQ(v, "stub: no camera support");
+  }
+}
+
 }  // namespace
 }  // namespace evpipe::device

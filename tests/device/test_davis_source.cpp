@@ -520,6 +520,26 @@ TEST_F(DavisSourceTest, LogLinesAreRoutedWithTheirLevel) {
   EXPECT_EQ(filtered[0].text, "test: forwarded 2");
 }
 
+// set_libcaer_log_level (evpipe's --log-level) sets libcaer's global level and the handler's filter.
+TEST_F(DavisSourceTest, SetLogLevelReachesLibcaer) {
+  set_libcaer_log_handler(&capture_log, LogLevel::notice);
+  set_libcaer_log_level(LogLevel::debug);
+  EXPECT_EQ(caerLogLevelGet(), CAER_LOG_DEBUG);
+  {
+    std::lock_guard lock(g_log_mu);
+    g_log.clear();
+  }
+  caerLog(CAER_LOG_DEBUG, "test", "debug line");
+  ASSERT_EQ(logged().size(), 1u);
+  EXPECT_EQ(logged()[0].level, LogLevel::debug);
+
+  set_libcaer_log_level(LogLevel::warning);
+  EXPECT_EQ(caerLogLevelGet(), CAER_LOG_WARNING);
+  caerLog(CAER_LOG_INFO, "test", "info line, filtered");
+  EXPECT_EQ(logged().size(), 1u);
+  set_libcaer_log_level(LogLevel::notice);
+}
+
 // ---- unplug / replug ----
 
 TEST_F(DavisSourceTest, UnplugDisconnectsWithoutCrashing) {

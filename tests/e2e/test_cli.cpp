@@ -200,6 +200,18 @@ TEST(Evsim, SameSeedSameBytes) {
   EXPECT_FALSE(slurp(a).empty());
 }
 
+TEST(Evpipe, VersionNamesTheLibcaerItWasBuiltWith) {
+  const auto r = run(kEvpipe + " --version");
+  EXPECT_EQ(r.status, 0);
+  if (EVPIPE_REAL_LIBCAER) {
+    EXPECT_TRUE(std::regex_match(
+        r.out, std::regex("evpipe " + std::string(EVPIPE_VERSION) + "\nlibcaer: [0-9]+\\.[0-9]+\\.[0-9]+\n")))
+        << r.out;
+  } else {
+    EXPECT_EQ(r.out, "evpipe " + std::string(EVPIPE_VERSION) + "\nlibcaer: stub: no camera support\n");
+  }
+}
+
 TEST(Evpipe, LiveModeWithoutLibcaerSaysSo) {
   // With the libcaer stub (CI has no libcaer), asking for the camera must fail clearly.
   if (EVPIPE_REAL_LIBCAER) GTEST_SKIP() << "built against the real libcaer";

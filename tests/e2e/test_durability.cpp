@@ -156,11 +156,20 @@ TEST(EvpipeDurability, Sigusr1LogsTheStatusAndSighupStopsCleanly) {
   const std::string csv = (dir / "poses.csv").string();
   const std::string out = (dir / "stdout.txt").string();
   const std::string err = (dir / "stderr.txt").string();
-  const pid_t pid = spawn_shell(kEvpipe + pose_args(csv) + " --speed 1 --no-lcm --json >" + q(out) + " 2>" + q(err));
+  // Quarter real time (12 s): the signals come while it runs even when the first pose is late on a busy machine.
+  const pid_t pid = spawn_shell(kEvpipe + pose_args(csv) + " --speed 0.25 --no-lcm --json >" + q(out) + " 2>" + q(err));
   ASSERT_GT(pid, 0);
-  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  // Not a fixed sleep: before evpipe has installed its handlers, USR1 and HUP would kill it (their default action).
+  // A row in the CSV means the pipeline runs, and the handlers are installed before it starts.
+  const auto t_spawn = Clock::now();
+  for (std::string text;
+       std::count(text.begin(), text.end(), '\n') < 2 && Clock::now() - t_spawn < std::chrono::seconds(30);
+       text = slurp(csv))
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   ASSERT_EQ(::kill(pid, SIGUSR1), 0);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  for (const auto t_usr1 = Clock::now();
+       slurp(err).find("status: ") == std::string::npos && Clock::now() - t_usr1 < std::chrono::seconds(5);)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_NE(slurp(err).find("status: "), std::string::npos) << slurp(err);
   ASSERT_EQ(::kill(pid, SIGHUP), 0);
   const auto t_hup = Clock::now();

@@ -28,7 +28,10 @@ namespace {
 
 const std::string kEvpipe = EVPIPE_EXE;
 const std::string kView = EVPIPE_VIEW_EXE;
-const std::string kUrl = "udpm://239.255.76.67:7667?ttl=0";
+// A port of this process's own: without a private network namespace (no unshare), the tests of this file run in
+// parallel (one ctest each) on the host's loopback, and a shared port would let one test's previews reach another's
+// viewer (the "wrong channel" viewer would then see a valid preview).
+const std::string kUrl = "udpm://239.255.76.67:" + std::to_string(20000 + ::getpid() % 20000) + "?ttl=0";
 
 std::string sample_args() {
   const std::string stem = (evpipe::testing::source_dir() / "tests/data/roadheader-sample").string();

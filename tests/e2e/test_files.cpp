@@ -92,6 +92,19 @@ TEST_F(Files, EvsimAndEvposeEvalRefuseToOverwriteTheirInputs) {
   EXPECT_NE(e.status, 0);
   EXPECT_THAT(e.err, HasSubstr("refusing to overwrite it")) << e.err;
   EXPECT_EQ(slurp(path("rh.gt.csv")), slurp(source(".gt.csv")));
+  // --errors-out naming the estimate (read before it is written) is refused too, the estimate kept.
+  fs::copy_file(source(".gt.csv"), path("est.csv"));
+  const auto eo =
+      run(kEvposeEval + " " + q(path("est.csv")) + " " + q(path("rh.gt.csv")) + " --errors-out " + q(path("est.csv")));
+  EXPECT_NE(eo.status, 0);
+  EXPECT_THAT(eo.err, HasSubstr("est.csv: is also an input of this program")) << eo.err;
+  EXPECT_EQ(slurp(path("est.csv")), slurp(source(".gt.csv")));
+  // --png naming --errors-out (written just before) likewise.
+  const auto ep = run(kEvposeEval + " " + q(path("est.csv")) + " " + q(path("rh.gt.csv")) + " --errors-out " +
+                      q(path("err.csv")) + " --png " + q(path("err.csv")));
+  EXPECT_NE(ep.status, 0);
+  EXPECT_THAT(ep.err, HasSubstr("err.csv: is also an input of this program")) << ep.err;
+  EXPECT_THAT(slurp(path("err.csv")), ::testing::StartsWith("t_us,status,")) << ep.err;
 }
 
 // Row 5: --poses-out (or an LCM log) naming one of evpipe's own inputs truncated it before it was read.
@@ -118,6 +131,15 @@ TEST_F(Files, EvpipeOutputsNamingAnInputAreRefusedBeforeTruncating) {
       evpipe("--poses-out " + q(path("p.csv")) + " --lcm-url " + q("file://" + path("p.csv") + "?mode=w"));
   EXPECT_EQ(both.status, 2);
   EXPECT_THAT(both.err, HasSubstr("refusing to overwrite it")) << both.err;
+  // Nor is --video one of the outputs, even when it did not exist before the run (the LCM log's name).
+  const auto video_csv = evpipe("--no-lcm --poses-out " + q(path("csv.mp4")) + " --video " + q(path("csv.mp4")));
+  EXPECT_EQ(video_csv.status, 2);
+  EXPECT_THAT(video_csv.err, HasSubstr("--video: " + path("csv.mp4"))) << video_csv.err;
+  EXPECT_THAT(slurp(path("csv.mp4")), ::testing::StartsWith("t_us,")) << "the poses CSV's header is kept";
+  const auto video_log =
+      evpipe("--lcm-url " + q("file://" + path("log.mp4") + "?mode=w") + " --video " + q(path("log.mp4")));
+  EXPECT_EQ(video_log.status, 2);
+  EXPECT_THAT(video_log.err, HasSubstr("--video: " + path("log.mp4"))) << video_log.err;
 }
 
 // Row 9: a FIFO without a writer as an input blocked open() for ever.
@@ -206,4 +228,12 @@ TEST_F(Files, CutAedatHeaderIsAnErrorNamingTheFile) {
   const auto c = run(kEvconvert + " " + q(path("cut.aedat4")) + " " + q(path("o.txt")));
   EXPECT_EQ(c.status, 1);
   EXPECT_THAT(c.err, HasSubstr("cut after 5 byte(s)")) << c.err;
+}
+
+// preview_t on the pose (or statistics) channel would reach the controller's pose subscription as another type.
+TEST_F(Files, PreviewChannelMayNotBeThePoseChannel) {
+  std::ofstream(path("evpipe.yaml")) << "lcm:\n  preview: true\n  preview_channel: EVPIPE_POSE\n";
+  const auto r = evpipe("--no-lcm");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("lcm.preview_channel: 'EVPIPE_POSE' is also the pose or statistics channel")) << r.err;
 }

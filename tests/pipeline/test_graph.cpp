@@ -583,6 +583,45 @@ TEST(PipelineGraph, CameraUnplugAndReplugAreVisibleAndThePipelineKeepsRunning) {
   }
   fake.reset();
 }
+
+// A source wrapping the camera (evpipe's preview tap): with options.wrapped_source the camera's state still shows.
+class PassThrough final : public EventSource {
+ public:
+  explicit PassThrough(std::unique_ptr<EventSource> inner) : inner_(std::move(inner)) {}
+  EventBatchPtr next() override { return inner_->next(); }
+  [[nodiscard]] bool finished() const override { return inner_->finished(); }
+  [[nodiscard]] const SourceInfo& info() const override { return inner_->info(); }
+  [[nodiscard]] const SourceStats& stats() const override { return inner_->stats(); }
+
+ private:
+  std::unique_ptr<EventSource> inner_;
+};
+
+TEST(PipelineGraph, AWrappedCameraStillReportsItsUnplug) {
+  auto& fake = caer_stub::FakeDevice::instance();
+  fake.reset();
+  device::DavisOptions dopt;
+  dopt.reconnect_interval_ms = 10;
+  dopt.statistics_interval_ms = 0;
+  auto camera = std::make_unique<device::DavisSource>(dopt);
+  RecordingProcessor processor;
+  RecordingSink sink;
+  PipelineOptions o;
+  o.mode = Mode::live;
+  o.stats_period = 50ms;
+  o.wrapped_source = camera.get();
+  Pipeline p(std::make_unique<PassThrough>(std::move(camera)), nullptr, processor, sink, o);
+  p.start();
+  fake.queue_events(fake_events(20'000, 0, 1));
+  ASSERT_TRUE(wait_until([&] { return p.stats().source.counters.events == 20'000; }));
+  fake.unplug();
+  ASSERT_TRUE(wait_until([&] { return p.stats().source.state == SourceState::lost; }));
+  EXPECT_EQ(p.stats().source.lost_count, 1u);
+  p.stop();
+  ASSERT_TRUE(p.wait_for(5s));
+  p.join();
+  fake.reset();
+}
 #endif
 
 }  // namespace

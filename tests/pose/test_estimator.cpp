@@ -103,7 +103,11 @@ TEST_P(EstimatorScenes, InitialisesTracksLosesAndRecovers) {
   SCOPED_TRACE(::testing::Message() << model_file << " at " << distance_m << " m, seed " << seed);
   const std::int64_t duration_us = 1'500'000;
   const Scene s(model_file, distance_m, seed, duration_us);
-  pose::PoseEstimator est(s.scene.camera, s.scene.model, s.prior);
+  // Without holding: a window without any event is a still target to the standstill test (HoldsAStillTarget...
+  // below); here the events vanish to exercise the loss and the re-initialisation.
+  pose::EstimatorOptions o;
+  o.hold = false;
+  pose::PoseEstimator est(s.scene.camera, s.scene.model, s.prior, o);
 
   int first_tracking_window = -1;
   double worst_mm = 0.0, worst_deg = 0.0;
@@ -229,7 +233,8 @@ TEST(PoseEstimator, InitialisationElsewhereStartsTheTrackOnALaterWindow) {
   EXPECT_EQ(c.init_attempts, attempts_before + 1);
   EXPECT_EQ(c.init_successes, 1u);
   EXPECT_EQ(c.windows, windows_before + kWaiting + 2);
-  EXPECT_EQ(c.windows_by_status[0] + c.windows_by_status[1] + c.windows_by_status[2], c.windows);
+  EXPECT_EQ(c.windows_by_status[0] + c.windows_by_status[1] + c.windows_by_status[2] + c.windows_by_status[3],
+            c.windows);
 
   // An outcome that comes back after a reset() (a clock jump, a reconnect) belongs to the old track.
   split.reset();
@@ -350,3 +355,102 @@ TEST_P(FirstInitialisation, IsTheTruePoseNotOneThatOnlyPassesNearTheEvents) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, FirstInitialisation, ::testing::Range(0, 5));
+
+// Standstill (issue 21): the roadheader moves, decelerates, stands still 1.5 s, accelerates and moves on, under
+// 1 Hz/px of background activity (no denoiser). While it stands the estimator holds the last measured pose
+// (holding, valid, t_last_update_us older than t_us), never lost; when it moves again tracking resumes from the
+// held pose without a re-initialisation.
+TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
+  const std::uint64_t seed = 20261126;
+  SCOPED_TRACE(::testing::Message() << "seed " << seed);
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  sim::TargetScene scene;
+  scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+  scene.model = camera::load_line_model((cfg / "roadheader-wireframe.yaml").string());
+  sim::MotionOptions mo;
+  mo.base = sim::facing_pose(scene.model, 1.0, sim::default_view(scene.model));
+  mo.pivot_model_m = sim::bbox_centre(scene.model);
+  std::mt19937_64 rng(seed);
+  const auto base = sim::generate_motion(0, 2'000'000, mo, rng);
+  // Time warp: the speed factor falls to 0 over 0.2 s (cosine) at 0.6 s, stays 0 for 1.5 s, rises over 0.2 s.
+  constexpr double kStop_s = 0.6, kStill_s = 1.5, kRamp_s = 0.2;
+  const auto speed = [&](double t) {
+    if (t < kStop_s - kRamp_s) return 1.0;
+    if (t < kStop_s) return 0.5 * (1.0 + std::cos(M_PI * (t - (kStop_s - kRamp_s)) / kRamp_s));
+    if (t < kStop_s + kStill_s) return 0.0;
+    if (t < kStop_s + kStill_s + kRamp_s) return 0.5 * (1.0 - std::cos(M_PI * (t - kStop_s - kStill_s) / kRamp_s));
+    return 1.0;
+  };
+  const std::int64_t duration_us = 3'000'000;
+  double s_us = 0.0;
+  for (std::int64_t t = 0; t <= duration_us; t += 1000) {
+    scene.trajectory.push_back({t, *camera::interpolate(base, static_cast<std::int64_t>(s_us))});
+    s_us += 1000.0 * 0.5 * (speed(1e-6 * t) + speed(1e-6 * (t + 1000)));
+  }
+  std::vector<Event> events = sim::render_target(scene, 0, duration_us, rng);
+  std::mt19937_64 noise_rng(seed + 1);
+  sim::NoiseOptions no;
+  no.rate_hz_per_pixel = 1.0;
+  const auto noise =
+      sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0, duration_us, no, noise_rng);
+  events.insert(events.end(), noise.begin(), noise.end());
+  std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  camera::PosePrior prior;
+  prior.pose = sim::perturb_pose(scene.trajectory.front().pose, 0.05, 10.0, rng);
+
+  pose::EstimatorOptions o;
+  o.track.window_us = kWindow_us;
+  o.track.step_us = kWindow_us;
+  pose::PoseEstimator est(scene.camera, scene.model, prior, o);
+  const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
+  bool tracked = false;
+  double worst_tracked_mm = 0.0, worst_held_mm = 0.0, worst_held_deg = 0.0;
+  int held = 0, tracked_after = 0;
+  for (std::int64_t t0 = 0; t0 + kWindow_us <= duration_us; t0 += kWindow_us) {
+    const auto lo = std::lower_bound(events.begin(), events.end(), t0, before);
+    const auto hi = std::lower_bound(lo, events.end(), t0 + kWindow_us, before);
+    const std::int64_t t_mid = t0 + kWindow_us / 2;
+    const auto out = est.process(EventSpan(lo, hi), t_mid);
+    if (!tracked) {
+      tracked = out.status == pose::TrackStatus::tracking && out.pose_valid;
+      continue;
+    }
+    ASSERT_NE(out.status, pose::TrackStatus::lost) << "window at " << t_mid << " us: " << out.note;
+    const auto truth = *camera::interpolate(scene.trajectory, t_mid);
+    const double mm = 1000.0 * camera::translation_distance_m(out.T_cam_model, truth);
+    const double deg = camera::rotation_angle_deg(out.T_cam_model, truth);
+    const double t_s = 1e-6 * static_cast<double>(t_mid);
+    if (out.status == pose::TrackStatus::holding) {
+      ++held;
+      EXPECT_TRUE(out.pose_valid);
+      EXPECT_LT(out.t_last_update_us, out.t_us);
+      EXPECT_TRUE(out.covariance_known);
+      worst_held_mm = std::max(worst_held_mm, mm);
+      worst_held_deg = std::max(worst_held_deg, deg);
+    } else if (out.status == pose::TrackStatus::tracking && out.pose_valid) {
+      EXPECT_EQ(out.t_last_update_us, out.t_us);
+      if (t_s < kStop_s - kRamp_s) worst_tracked_mm = std::max(worst_tracked_mm, mm);
+      if (t_s > kStop_s + kStill_s + kRamp_s + 0.1) {
+        ++tracked_after;
+        EXPECT_LT(mm, 15.0) << "after the stop, window at " << t_mid << " us";
+      }
+    }
+    // Well inside the stop every window holds.
+    if (t_s > kStop_s + 0.2 && t_s < kStop_s + kStill_s - 0.1) {
+      EXPECT_EQ(out.status, pose::TrackStatus::holding) << "window at " << t_mid << " us: " << out.note;
+    }
+  }
+  ASSERT_TRUE(tracked) << "never initialised";
+  std::cout << "held " << held << " windows, worst " << worst_held_mm << " mm / " << worst_held_deg
+            << " deg (tracked before the stop: worst " << worst_tracked_mm << " mm); " << tracked_after
+            << " windows tracked after it\n";
+  const auto& c = est.counters();
+  EXPECT_EQ(c.init_successes, 1u);  // resumed from the held pose, not re-initialised
+  EXPECT_EQ(c.losses, 0u);
+  EXPECT_GE(c.holds, 1u);
+  EXPECT_GE(c.hold_resumes, 1u);
+  EXPECT_GE(held, 45);  // 1.5 s still = 50 windows
+  EXPECT_LT(worst_held_mm, 10.0);
+  EXPECT_LT(worst_held_deg, 1.0);
+  EXPECT_GE(tracked_after, 15);
+}

@@ -23,7 +23,7 @@ DESTDIR="$root" cmake --install "$build" >"$work/install1.log" 2>&1 || { cat "$w
 unit="$(full "$unitdir")/evpipe.service"
 expected=(
   "$bindir/evpipe" "$bindir/evconvert" "$bindir/evsim" "$bindir/evdenoise"
-  "$unit" "$(full "$udevdir")/65-evpipe-inivation.rules"
+  "$unit" "$(full "$udevdir")/70-evpipe-inivation.rules"
   "$confdir/evpipe.yaml" "$confdir/evpipe.yaml.default" "$confdir/davis346.yaml" "$confdir/prior-example.yaml"
   "$confdir/roadheader-wireframe.yaml" "$confdir/roadheader-wireframe.dxf" "$confdir/target-planar.yaml"
   "$(full "$docdir")/operations.md" "$(full "$docdir")/README.md"

@@ -18,6 +18,7 @@ PoseRecord random_pose(std::mt19937_64& rng) {
   PoseRecord r;
   r.seq = 42;
   r.t_us = 1'234'567'890;
+  r.t_last_update_us = 1'234'000'000;
   r.utime_us = 1'700'000'000'123'456;
   r.camera_frame = "cam";
   r.model_frame = "roadheader";
@@ -48,6 +49,7 @@ TEST(TransportCodec, PoseRoundTripsEveryField) {
     ASSERT_TRUE(out.has_value());
     EXPECT_EQ(out->seq, in.seq);
     EXPECT_EQ(out->t_us, in.t_us);
+    EXPECT_EQ(out->t_last_update_us, in.t_last_update_us);
     EXPECT_EQ(out->utime_us, in.utime_us);
     EXPECT_EQ(out->camera_frame, in.camera_frame);
     EXPECT_EQ(out->model_frame, in.model_frame);
@@ -120,12 +122,39 @@ TEST(TransportCodec, StatusWireValues) {
   EXPECT_EQ(evpipe::pose_t::STATUS_INITIALISING, static_cast<std::int8_t>(TrackingStatus::initialising));
   EXPECT_EQ(evpipe::pose_t::STATUS_TRACKING, static_cast<std::int8_t>(TrackingStatus::tracking));
   EXPECT_EQ(evpipe::pose_t::STATUS_LOST, static_cast<std::int8_t>(TrackingStatus::lost));
-  for (const auto s : {TrackingStatus::initialising, TrackingStatus::tracking, TrackingStatus::lost}) {
+  EXPECT_EQ(evpipe::pose_t::STATUS_HOLDING, static_cast<std::int8_t>(TrackingStatus::holding));
+  EXPECT_EQ(to_string(TrackingStatus::holding), "holding");
+  for (const auto s :
+       {TrackingStatus::initialising, TrackingStatus::tracking, TrackingStatus::lost, TrackingStatus::holding}) {
     PoseRecord r;
     r.status = s;
     const auto bytes = encode(r);
     EXPECT_EQ(decode_pose(bytes.data(), bytes.size())->status, s);
   }
+  // A value outside the four is refused with the field named.
+  evpipe::pose_t m = to_lcm(PoseRecord{});
+  m.status = 4;
+  EXPECT_THROW((void)from_lcm(m), DecodeError);
+}
+
+TEST(TransportCodec, HoldingPoseCarriesTheTimeOfItsLastMeasurement) {
+  PoseRecord r;
+  r.t_us = 5'015'000;
+  r.t_last_update_us = 3'015'000;  // held for 2 s
+  r.status = TrackingStatus::holding;
+  r.pose_valid = true;
+  const auto bytes = encode(r);
+  const auto out = decode_pose(bytes.data(), bytes.size());
+  ASSERT_TRUE(out);
+  EXPECT_EQ(out->status, TrackingStatus::holding);
+  EXPECT_TRUE(out->pose_valid);
+  EXPECT_EQ(out->t_last_update_us, 3'015'000);
+  const std::string json = to_json(*out, "EVPIPE_POSE");
+  EXPECT_NE(json.find("\"t_us\":5015000,\"t_last_update_us\":3015000,"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"status\":\"holding\",\"pose_valid\":true"), std::string::npos) << json;
+  const std::string text = to_text(*out, "EVPIPE_POSE");
+  EXPECT_NE(text.find(" holding t_m="), std::string::npos) << text;
+  EXPECT_NE(text.find(" measured_t=3.015000 s "), std::string::npos) << text;
 }
 
 StatsRecord sample_stats() {

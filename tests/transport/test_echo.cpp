@@ -48,6 +48,7 @@ PoseRecord pose_at(std::int64_t t_us) {
   PoseRecord r;
   r.t_us = t_us;
   r.status = TrackingStatus::lost;
+  r.t_last_update_us = 500;
   r.T_cam_model.t_cam_model_m = {0.5, 0.25, 3.0};
   return r;
 }
@@ -74,6 +75,7 @@ TEST(LcmEcho, PrintsALogAsJsonLines) {
     EXPECT_NE(l[k].find("\"seq\":" + std::to_string(k) + ","), std::string::npos) << l[k];
     EXPECT_NE(l[k].find("\"t_us\":" + std::to_string(1000 * k) + ","), std::string::npos) << l[k];
     EXPECT_NE(l[k].find("\"status\":\"lost\""), std::string::npos) << l[k];
+    EXPECT_NE(l[k].find("\"t_last_update_us\":500,"), std::string::npos) << l[k];
     EXPECT_NE(l[k].find("\"position_m\":[0.5,0.25,3]"), std::string::npos) << l[k];
   }
   EXPECT_NE(l[4].find("\"type\":\"evpipe.stats_t\""), std::string::npos) << l[4];

@@ -108,4 +108,15 @@ TEST(PreviewCodec, BadBytesGiveClearErrorsNotCrashes) {
   } catch (const DecodeError& e) {
     EXPECT_NE(std::string(e.what()).find("preview_t.image"), std::string::npos) << e.what();
   }
+  // A size no preview has (32767 x 32767): refused before anything is allocated for it.
+  auto huge = sample(1, 1);
+  huge.width = 32767;
+  huge.height = 32767;
+  const auto huge_bytes = encode(huge);
+  try {
+    (void)decode_preview(huge_bytes.data(), huge_bytes.size());
+    FAIL() << "no DecodeError";
+  } catch (const DecodeError& e) {
+    EXPECT_NE(std::string(e.what()).find("32767x32767"), std::string::npos) << e.what();
+  }
 }

@@ -209,6 +209,9 @@ TEST(LcmUrl, ChecksEveryPart) {
         "udpm://239.255.76.67:7667", "memq://", "file:///tmp/a.lcmlog?mode=w", "tcpq://127.0.0.1:7700"})
     EXPECT_EQ(why(ok), "ok") << ok;
   EXPECT_EQ(why("file:///tmp/a.lcmlog?speed=0", false), "ok");
+  // A subscriber opening a log with mode=w: LCM would truncate the recording it was meant to read.
+  EXPECT_EQ(why("file:///tmp/a.lcmlog?mode=w", false),
+            "file:///tmp/a.lcmlog?mode=w: mode=w would truncate the log: reading it needs mode=r (the default)");
   EXPECT_EQ(why("udpm://239.255.76.67:7667?ttl=300"),
             "udpm://239.255.76.67:7667?ttl=300: ttl '300' is not an integer 0-255");
   EXPECT_EQ(why("udpm://239.255.76.67:7667?ttl=-1"),

@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 #include <libcaer/devices/davis.h>
+#include <libcaer/libcaer.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -153,6 +154,33 @@ std::string_view log_level_name(LogLevel level) noexcept {
       return "debug";
   }
   return "unknown";
+}
+
+std::string_view libcaer_version() noexcept {
+#if defined(LIBCAER_IS_STUB) && LIBCAER_IS_STUB
+  return "stub: no camera support";
+#else
+  return LIBCAER_VERSION_STRING;
+#endif
+}
+
+LogLevel log_level_from_name(std::string_view name) noexcept {
+  if (name == "trace" || name == "debug") return LogLevel::debug;
+  if (name == "info") return LogLevel::info;
+  if (name == "warn" || name == "warning") return LogLevel::warning;
+  if (name == "err" || name == "error") return LogLevel::error;
+  if (name == "critical") return LogLevel::critical;
+  if (name == "off") return LogLevel::emergency;
+  return LogLevel::notice;
+}
+
+void set_libcaer_log_level(LogLevel level) {
+  {
+    auto& r = routing();
+    std::lock_guard lock(r.mu);
+    r.max_level = level;
+  }
+  caerLogLevelSet(static_cast<enum caer_log_level>(level));
 }
 
 void set_libcaer_log_handler(LogHandler handler, LogLevel max_level) {

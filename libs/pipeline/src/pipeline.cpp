@@ -266,8 +266,9 @@ struct Pipeline::Impl {
       denoise_pool = std::make_unique<TaskPool>(options.denoise_threads - 1, "denoise-");
       filter->set_parallelism(options.denoise_threads, denoise_pool->runner());
     }
-    pacer = dynamic_cast<PacedSource*>(source.get());
-    davis = dynamic_cast<device::DavisSource*>(source.get());
+    EventSource* probed = options.wrapped_source != nullptr ? options.wrapped_source : source.get();
+    pacer = dynamic_cast<PacedSource*>(probed);
+    davis = dynamic_cast<device::DavisSource*>(probed);
     source_snapshot.counters = source->stats();
     source_snapshot.progress = source->progress();
   }

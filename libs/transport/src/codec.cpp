@@ -25,9 +25,11 @@ TrackingStatus status_from_wire(std::int8_t v, const char* type) {
       return TrackingStatus::tracking;
     case evpipe::pose_t::STATUS_LOST:
       return TrackingStatus::lost;
+    case evpipe::pose_t::STATUS_HOLDING:
+      return TrackingStatus::holding;
     default:
-      throw DecodeError(fmt::format("{}.status: {} is not one of STATUS_INITIALISING/TRACKING/LOST (0/1/2)", type,
-                                    static_cast<int>(v)));
+      throw DecodeError(fmt::format("{}.status: {} is not one of STATUS_INITIALISING/TRACKING/LOST/HOLDING (0/1/2/3)",
+                                    type, static_cast<int>(v)));
   }
 }
 
@@ -87,6 +89,7 @@ evpipe::pose_t to_lcm(const PoseRecord& r) {
   m.sigma_px = r.sigma_px;
   m.latency_us = r.latency_us;
   m.source_connected = r.source_connected;
+  m.t_last_update_us = r.t_last_update_us;
   return m;
 }
 
@@ -121,6 +124,7 @@ PoseRecord from_lcm(const evpipe::pose_t& m) {
   r.sigma_px = m.sigma_px;
   r.latency_us = m.latency_us;
   r.source_connected = m.source_connected != 0;
+  r.t_last_update_us = m.t_last_update_us;
   return r;
 }
 

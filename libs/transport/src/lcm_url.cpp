@@ -116,6 +116,8 @@ std::optional<std::string> check_lcm_url(const std::string& url, bool for_publis
       }
     }
     if (for_publishing && u.mode != "w") return bad("publishing to a log file needs mode=w (read mode is the default)");
+    if (!for_publishing && u.mode == "w")
+      return bad("mode=w would truncate the log: reading it needs mode=r (the default)");
   } else if (u.provider == "memq") {
     if (!u.target.empty() || !options.empty()) return bad("memq:// takes no target or options");
   } else if (u.provider == "tcpq") {

@@ -152,6 +152,12 @@ std::optional<PreviewRecord> decode_preview(const void* data, std::size_t size) 
     return std::nullopt;
   if (m.width <= 0 || m.height <= 0 || m.bin <= 0)
     throw DecodeError(fmt::format("preview_t: image size {}x{} bin {} (all must be > 0)", m.width, m.height, m.bin));
+  // evpipe bins its previews to at most 100 000 pixels (view::kMaxPreviewPixels); a stray message claiming up to
+  // 32767 x 32767 would have the viewer allocate gigabytes before its image is found not to decode.
+  constexpr std::int64_t kMaxPixels = 1'000'000;
+  if (static_cast<std::int64_t>(m.width) * m.height > kMaxPixels)
+    throw DecodeError(fmt::format("preview_t: image size {}x{} is more than the {} pixels a preview has at most",
+                                  m.width, m.height, kMaxPixels));
   PreviewRecord r;
   r.utime_us = m.utime;
   r.seq = m.seq;

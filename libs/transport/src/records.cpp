@@ -12,6 +12,8 @@ std::string_view to_string(TrackingStatus s) noexcept {
       return "tracking";
     case TrackingStatus::lost:
       return "lost";
+    case TrackingStatus::holding:
+      return "holding";
   }
   return "?";
 }

@@ -41,6 +41,8 @@ std::string to_json(const PoseRecord& r, std::string_view channel) {
   put_int(o, r.utime_us);
   o += ",\"t_us\":";
   put_int(o, r.t_us);
+  o += ",\"t_last_update_us\":";
+  put_int(o, r.t_last_update_us);
   o += ",\"seq\":";
   put_int(o, r.seq);
   o += ",\"camera_frame\":";
@@ -154,11 +156,12 @@ std::string to_text(const PoseRecord& r, std::string_view channel) {
   const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
   const Eigen::Vector3d& t = r.T_cam_model.t_cam_model_m;
   return fmt::format(
-      "{} #{} t={:.6f} s {}{} t_m=[{:.4f} {:.4f} {:.4f}] q=[{:.5f} {:.5f} {:.5f} {:.5f}] inliers={}/{} "
-      "sigma={:.3f} px cov={} latency={} us{}",
+      "{} #{} t={:.6f} s {}{} t_m=[{:.4f} {:.4f} {:.4f}] q=[{:.5f} {:.5f} {:.5f} {:.5f}] measured_t={:.6f} s "
+      "inliers={}/{} sigma={:.3f} px cov={} latency={} us{}",
       channel, r.seq, static_cast<double>(r.t_us) * 1e-6, to_string(r.status), r.pose_valid ? "" : " (invalid)", t.x(),
-      t.y(), t.z(), q.qw, q.qx, q.qy, q.qz, r.inliers, r.window_events, r.sigma_px,
-      r.covariance_known ? "known" : "unknown", r.latency_us, r.source_connected ? "" : " SOURCE DISCONNECTED");
+      t.y(), t.z(), q.qw, q.qx, q.qy, q.qz, static_cast<double>(r.t_last_update_us) * 1e-6, r.inliers, r.window_events,
+      r.sigma_px, r.covariance_known ? "known" : "unknown", r.latency_us,
+      r.source_connected ? "" : " SOURCE DISCONNECTED");
 }
 
 std::string to_text(const StatsRecord& r, std::string_view channel) {

@@ -46,6 +46,19 @@ enum class LogLevel : int {
 
 [[nodiscard]] std::string_view log_level_name(LogLevel level) noexcept;
 
+/// The libcaer this build uses, for `evpipe --version`: its version from the headers it was compiled against
+/// (LIBCAER_VERSION_STRING, e.g. "3.3.15"), or "stub: no camera support" with evpipe's stub.
+[[nodiscard]] std::string_view libcaer_version() noexcept;
+
+/// libcaer's level for an application log level name (spdlog's: trace, debug, info, warn/warning, err/error,
+/// critical, off): trace and debug → debug, info → info, warn → warning, error → error, critical → critical,
+/// off → emergency (libcaer cannot be silenced further). Unknown names → notice (libcaer's default for evpipe).
+[[nodiscard]] LogLevel log_level_from_name(std::string_view name) noexcept;
+
+/// Sets libcaer's process-wide log level (caerLogLevelSet) and the level up to which lines reach the handler of
+/// set_libcaer_log_handler(). Each DavisSource also sets it from DavisOptions::libcaer_log_level.
+void set_libcaer_log_level(LogLevel level);
+
 /// Receives one libcaer log line: its level and the text after the level ("<subsystem>: <message>",
 /// without libcaer's time prefix and trailing newline).
 using LogHandler = std::function<void(LogLevel level, std::string_view message)>;

@@ -160,6 +160,9 @@ struct PipelineOptions {
   /// Threads the denoise stage spreads the filter's work over (its own thread + denoise_threads − 1 pool workers,
   /// denoise::Filter::set_parallelism); 1 = the stage's thread only. Decisions do not depend on it.
   int denoise_threads = 1;
+  /// When `source` wraps another source (evpipe's preview tap): that source, in which the pipeline looks for the
+  /// camera (its connected/lost state and reconnects) and the replay pacer. Null: `source` itself. Not owned.
+  EventSource* wrapped_source = nullptr;
 };
 
 class Pipeline {

@@ -3,8 +3,14 @@
 // re-initialise around the last good pose. One call per window of denoised events; no threads here.
 //
 //   initialising --init ok--> tracking --lost_after_windows unhealthy updates--> lost --init ok--> tracking
+//                              |      ^
+//        unhealthy update, but |      | excess events near the model (it moves again): measured from the held
+//        the data shows no     v      | pose with zero velocity; unmeasurable -> unhealthy (-> lost)
+//        motion (standstill)  holding --activity elsewhere the model does not explain, hold_contradicted_windows
+//                                       in a row--> lost
 //
-// While initialising or lost the estimate carries pose_valid = false and the last good pose (or the prior).
+// While initialising or lost the estimate carries pose_valid = false and the last good pose (or the prior); while
+// holding, pose_valid = true and the last measured pose (t_last_update_us says when it was measured).
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
@@ -12,6 +18,7 @@
 #include "evpipe/core/event.hpp"
 #include "evpipe/pose/initialiser.hpp"
 #include "evpipe/pose/projection.hpp"
+#include "evpipe/pose/standstill.hpp"
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/pose/types.hpp"
 
@@ -35,6 +42,12 @@ struct EstimatorOptions {
   /// still uses the window alone.
   std::int64_t init_accumulate_us = 300'000;
   std::size_t init_target_events = 4000;
+  /// > 0: every other attempt uses the newest init_long_target_events of the last init_long_accumulate_us instead
+  /// (a slow target's edges move too little in 300 ms for LSD: no line at 0.02 m/s). Off by default: measured on
+  /// 0.02 m/s scenes it initialises (0 -> 47-89 % valid) but also on wrong poses at 5 Hz/px (roadheader 188 mm
+  /// RMSE) until initialisation is verified (issue 21); try e.g. 1'000'000 / 20'000.
+  std::int64_t init_long_accumulate_us = 0;
+  std::size_t init_long_target_events = 20'000;
   /// Tracking on a sparse window (slow target, or most events filtered out) uses the newest track_min_events
   /// events instead, none older than track_max_span_us (pose.md §8: windows sized by count, capped in time).
   std::size_t track_min_events = 1500;
@@ -51,6 +64,18 @@ struct EstimatorOptions {
   double max_step_deg = 10.0;
   /// Predict the next pose by constant velocity from the last two tracked poses (else: the last pose).
   bool constant_velocity = true;
+  /// Standstill (docs/algorithms.md "Holding"): an unhealthy update whose window shows no motion near the last
+  /// pose's model beyond the noise (standstill.hpp) holds that pose (status holding) instead of counting as
+  /// unhealthy. false: every unhealthy update counts (the behaviour before holding).
+  bool hold = true;
+  StandstillOptions standstill;
+  /// A hold starts only when the last tracked motion moved the model's image by at most this per window (a
+  /// target that was moving fast cannot have stopped within one window; its events vanishing means something
+  /// else).
+  double hold_entry_max_motion_px = 3.0;
+  /// Windows in a row with activity elsewhere that the model does not explain (the target may have moved while
+  /// unseen, or something else moves) that end a hold: lost.
+  int hold_contradicted_windows = 10;
 
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
@@ -58,9 +83,12 @@ struct EstimatorOptions {
 
 /// The result of one window.
 struct PoseEstimate {
-  std::int64_t t_us{0};  ///< sensor time the pose refers to (the time passed with the window)
+  std::int64_t t_us{0};  ///< sensor time the pose refers to (the time passed with the window: its middle)
+  /// Sensor time of the last window that measured the pose: t_us while tracking, older while holding, the
+  /// last measurement (0 if none yet) while initialising or lost.
+  std::int64_t t_last_update_us{0};
   camera::Pose T_cam_model;
-  bool pose_valid{false};  ///< false while initialising / lost: T_cam_model is the last good pose or the prior
+  bool pose_valid{false};  ///< true tracking / holding; false initialising / lost: the last good pose or the prior
   Covariance6 covariance{Covariance6::Zero()};
   bool covariance_known{false};
   TrackStatus status{TrackStatus::initialising};
@@ -102,7 +130,9 @@ struct EstimatorCounters {
   std::uint64_t init_successes{0};
   std::uint64_t losses{0};  ///< tracking → lost transitions
   std::uint64_t unhealthy_updates{0};
-  std::uint64_t windows_by_status[3]{0, 0, 0};  ///< indexed by TrackStatus
+  std::uint64_t windows_by_status[4]{0, 0, 0, 0};  ///< indexed by TrackStatus
+  std::uint64_t holds{0};                          ///< tracking → holding transitions
+  std::uint64_t hold_resumes{0};                   ///< holding → tracking (measured again from the held pose)
 };
 
 class PoseEstimator {
@@ -123,7 +153,9 @@ class PoseEstimator {
   //   needs_initialisation() -> prepare_initialisation(window) -> run_initialisation(job) on the worker,
   //   initialising_window(window) for each window while it runs, complete_initialisation(outcome, window) once
   //   it is done. Every call except run_initialisation counts as one window.
-  [[nodiscard]] bool needs_initialisation() const noexcept { return status_ != TrackStatus::tracking; }
+  [[nodiscard]] bool needs_initialisation() const noexcept {
+    return status_ != TrackStatus::tracking && status_ != TrackStatus::holding;
+  }
   /// A window that needs initialisation: the job for it (`now` then says the attempt started), or nullopt and
   /// `now` saying why not (too few events).
   std::optional<InitJob> prepare_initialisation(EventSpan window, std::int64_t t_end_us, PoseEstimate& now);
@@ -164,7 +196,9 @@ class PoseEstimator {
     std::optional<camera::StampedPose> last;      ///< last good pose
     std::optional<camera::StampedPose> previous;  ///< the one before (for constant velocity)
     int unhealthy_in_a_row{0};
-    bool lost{false};  ///< lost_after_windows unhealthy updates in a row
+    bool lost{false};         ///< lost_after_windows unhealthy updates in a row
+    TrackUpdate last_update;  ///< the update that measured `last` (its covariance is the held pose's)
+    std::optional<TrackUpdate> previous_update;  ///< the one that measured `previous`
   };
   /// history: the remembered events up to this window (recent_, or a prefix of it when catching up).
   PoseEstimate track(EventSpan window, std::int64_t t_end_us, EventSpan history);
@@ -182,6 +216,18 @@ class PoseEstimator {
   [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const;
   [[nodiscard]] camera::Pose predict(const TrackState& state, std::int64_t t_end_us) const;
   void set_status(TrackStatus s);
+  /// Standstill: after an unhealthy update (state restored to before it), does this window allow a hold at the
+  /// last pose? Starts the monitor when it does.
+  bool try_hold(EventSpan window, std::int64_t t_end_us);
+  /// Do the events an update used have significantly more events near the model at this pose than the noise
+  /// explains (and at least the tracker's min_inliers more)?
+  bool signal_near(EventSpan events, const camera::Pose& T_cam_model);
+  /// A window while holding.
+  PoseEstimate hold_step(EventSpan window, std::int64_t t_end_us, EventSpan history);
+  PoseEstimate held_pose(std::int64_t t_end_us, std::size_t window_events) const;
+  [[nodiscard]] double image_motion_per_window_px(const TrackState& state) const;
+  /// Largest image motion (px) of the model's segment ends between two poses.
+  [[nodiscard]] double image_motion_px(const camera::Pose& a, const camera::Pose& b) const;
 
   camera::CameraModel camera_;
   /// The camera's undistortion table, built with the estimator (at start-up) and only read after: the tracking
@@ -196,6 +242,11 @@ class PoseEstimator {
   std::vector<Event> recent_;  ///< the newest events (init_accumulate_us, at most a few thousand)
   std::uint64_t generation_{0};
   std::optional<std::int64_t> attempt_t_us_;  ///< an attempt prepared and not completed: its window's time
+  StandstillMonitor standstill_;              ///< active while holding
+  StandstillMonitor probe_;                   ///< signal_near's scratch
+  std::int64_t hold_previous_t_us_{0};        ///< the previous window's time while holding
+  int hold_contradicted_{0};                  ///< windows in a row with unexplained activity while holding
+  std::int64_t hold_newest_counted_us_{0};    ///< newest event counted into the hold's totals
   EstimatorCounters counters_;
 };
 

@@ -12,9 +12,11 @@
 
 namespace evpipe::pose {
 
-/// Tracking status published with every pose (interfaces.md: initialising / tracking / lost). The numeric values
-/// are the wire values of the LCM pose message.
-enum class TrackStatus : std::uint8_t { initialising = 0, tracking = 1, lost = 2 };
+/// Tracking status published with every pose (interfaces.md). The numeric values are the wire values of the LCM
+/// pose message. What each promises: tracking = measured in this window and verified; holding = the target is
+/// still (the window shows no motion near the model beyond the noise), the last measured pose is repeated;
+/// initialising and lost = no valid pose.
+enum class TrackStatus : std::uint8_t { initialising = 0, tracking = 1, lost = 2, holding = 3 };
 
 [[nodiscard]] constexpr std::string_view to_string(TrackStatus s) noexcept {
   switch (s) {
@@ -24,6 +26,8 @@ enum class TrackStatus : std::uint8_t { initialising = 0, tracking = 1, lost = 2
       return "tracking";
     case TrackStatus::lost:
       return "lost";
+    case TrackStatus::holding:
+      return "holding";
   }
   return "?";
 }

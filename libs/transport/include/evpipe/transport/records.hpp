@@ -19,19 +19,21 @@ inline constexpr std::string_view kDefaultPoseChannel = "EVPIPE_POSE";
 inline constexpr std::string_view kDefaultStatsChannel = "EVPIPE_STATS";
 
 /// Tracking status on the wire (pose_t.STATUS_*); the values equal pose::TrackStatus's.
-enum class TrackingStatus : std::int8_t { initialising = 0, tracking = 1, lost = 2 };
+enum class TrackingStatus : std::int8_t { initialising = 0, tracking = 1, lost = 2, holding = 3 };
 
 [[nodiscard]] std::string_view to_string(TrackingStatus s) noexcept;
 
 /// One published pose, T_cam_model (interfaces.md: p_cam = R * p_model + t).
 struct PoseRecord {
-  std::int64_t seq{-1};      ///< publication number; -1 = assigned by the publisher (0, 1, 2, ...)
-  std::int64_t t_us{0};      ///< sensor time the pose refers to (window end), device clock
+  std::int64_t seq{-1};  ///< publication number; -1 = assigned by the publisher (0, 1, 2, ...)
+  std::int64_t t_us{0};  ///< sensor time the pose refers to (the window's middle), device clock
+  /// Sensor time of the last window that measured the pose (= t_us while tracking, older while holding).
+  std::int64_t t_last_update_us{0};
   std::int64_t utime_us{0};  ///< host wall clock at publication, us since the epoch; 0 = set when published
   std::string camera_frame{"cam"};
   std::string model_frame{"model"};
   TrackingStatus status{TrackingStatus::initialising};
-  bool pose_valid{false};    ///< false: T_cam_model is the last good pose or the prior
+  bool pose_valid{false};    ///< true tracking / holding; false: T_cam_model is the last good pose or the prior
   camera::Pose T_cam_model;  ///< written as position_m + wire quaternion (camera::to_wire, qw >= 0)
   bool covariance_known{false};
   /// Row-major 6x6, order rx ry rz (rad, left-multiplied small rotation about the camera axes) then tx ty tz
