@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Generates the seed corpora of the reader fuzzers into OUT_DIR/{aedat2,aedat31,aedat4,text}/: small valid
 # files written by evpipe's own writers, hand-built AEDAT 2.0 files, and small crops of the third-party
-# recordings when ../shared/data/real is present (crops are made here, at fuzz time, and never committed).
+# recordings when ../shared/data/real is present (crops are made here, at fuzz time, and never committed);
+# and of the run-configuration fuzzer into OUT_DIR/config/: the shipped YAML files of config/ (evpipe.yaml, every
+# key with its default, and the camera/model/prior files for more YAML shapes) and one config per section.
 #
 # Usage: tools/make_fuzz_corpus.sh BUILD_DIR OUT_DIR
 #   BUILD_DIR: a build with the evpipe_fuzz_seeds target (configured with -DEVPIPE_FUZZ=ON)
@@ -31,6 +33,9 @@ else
   echo "$0: $real absent: seeds from evpipe's writers only" >&2
   "$seeds_bin" "$out"
 fi
+mkdir -p "$out/config"
+cp "$root"/config/*.yaml "$out/config/"
+awk '/^[a-z]+:/ { n++ } { print > (dir "/section-" n ".yaml") }' dir="$out/config" "$root/config/evpipe.yaml"
 for d in "$out"/*/; do
   echo "seeds: $(basename "$d"): $(find "$d" -type f | wc -l) files"
 done

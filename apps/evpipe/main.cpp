@@ -210,6 +210,27 @@ int run(const Cli& cli) {
     std::fprintf(stderr, "evpipe: %s\n", e.what());
     return 1;
   }
+  if (pose_stage && !pc.camera.empty()) {
+    // Issue 17: a calibration of another size (640x480 on a 346x260 recording) gave wrong poses without a word. An
+    // error when the recording or camera states its size; a warning when the reader assumed it.
+    try {
+      const auto cam = camera::load_camera(pc.camera);
+      const auto& g = source->info().geometry;
+      if (cam.width != g.width || cam.height != g.height) {
+        const auto why = fmt::format("pose.camera: {}: the calibration is for a {}x{} sensor, the {} is {}x{}{}",
+                                     pc.camera, cam.width, cam.height, live ? "camera" : "recording", g.width, g.height,
+                                     source->info().geometry_known ? "" : " (assumed: source.default_width/height)");
+        if (source->info().geometry_known) {
+          std::fprintf(stderr, "evpipe: configuration error: %s\n", why.c_str());
+          return 2;
+        }
+        spdlog::warn("{}", why);
+      }
+    } catch (const camera::ModelError& e) {
+      std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
+      return 2;
+    }
+  }
   // The preview (LCM preview_t, --video, --png-every) sees the raw events through this wrapper (preview.hpp).
   bool preview_lcm = cfg.lcm.preview && cfg.lcm.enabled;
   if (cfg.lcm.preview && !cfg.lcm.enabled) spdlog::warn("LCM preview: off, because LCM is off (--no-lcm, lcm.enabled)");
@@ -491,6 +512,12 @@ int main(int argc, char** argv) {
   app.add_flag("--json", cli.json, "Print the summary as one JSON object");
   app.add_flag("--no-progress", cli.no_progress, "No progress bar even on a terminal");
   app.add_flag("--print-config", cli.print_config, "Print the effective configuration as YAML and exit");
+  app.footer(fmt::format(
+      "Limits (docs/operations.md): a sensor of at most {0}x{0} pixels; each denoise filter's per-pixel state at most "
+      "{1} bytes per pixel ({2} MiB at that size); --speed in [{3}, {4}] or max; the ranges of every configuration "
+      "key are in config/evpipe.yaml.",
+      evpipe::kMaxSensorSide, evpipe::denoise::kMaxFilterBytesPerPixel, evpipe::denoise::kMaxFilterStateBytes >> 20,
+      evpipe::config::kMinSpeed, evpipe::config::kMaxSpeed));
   app.add_flag("--preview", cli.preview, "Publish a preview for evpipe-view on EVPIPE_PREVIEW (lcm.preview)");
   app.add_option("--preview-hz", cli.preview_hz, "Previews per second (implies --preview; lcm.preview_hz, default 10)")
       ->check(CLI::Range(0.1, 30.0));

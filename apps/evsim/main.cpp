@@ -18,6 +18,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -51,7 +52,9 @@ namespace {
 constexpr std::int64_t kPreviewSpan_us = 30'000;    // the 30 ms window of --png (and of the pure-noise protocol)
 constexpr std::int64_t kPureNoiseSpan_us = 30'000;  // paper, section 4.1
 constexpr double kMaxDuration_s = 3600.0;           // bounds the trajectory and event memory
-constexpr double kMaxExpectedNoiseEvents = 2e8;     // ~3 GB of events: refuse rather than exhaust memory
+constexpr std::int64_t kMaxAbsT0_us =
+    1'000'000'000'000'000'000;                   // 31 700 years: t0 + duration + windows never overflow
+constexpr double kMaxExpectedNoiseEvents = 2e8;  // ~3 GB of events: refuse rather than exhaust memory
 constexpr int kPreviewScale = 2;
 
 /// A problem with the command line (exit 2), as opposed to an input/output failure (exit 1).
@@ -741,6 +744,25 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
+  }
+  // Issue 17 row 13: CLI11 parses nan and inf as numbers and its range checks let NaN through (--noise-hz nan gave
+  // no noise, exit 0). Every floating-point option must be finite; times must leave room for the recording.
+  for (const CLI::Option* o : app.get_options()) {
+    if (o->get_type_name().rfind("FLOAT", 0) != 0 || o->count() == 0) continue;  // "FLOAT" or "FLOAT:..." (checks)
+    for (const auto& text : o->results()) {
+      char* end = nullptr;
+      const double v = std::strtod(text.c_str(), &end);
+      if (!std::isfinite(v)) {
+        std::fprintf(stderr, "evsim: %s: must be a finite number, got '%s'\n", o->get_name().c_str(), text.c_str());
+        return 2;
+      }
+    }
+  }
+  if (c.t0_us < -kMaxAbsT0_us || c.t0_us > kMaxAbsT0_us) {
+    std::fprintf(
+        stderr, "evsim: --t0-us: must be in [%lld, %lld] (the recording's times must not overflow), got %lld\n",
+        static_cast<long long>(-kMaxAbsT0_us), static_cast<long long>(kMaxAbsT0_us), static_cast<long long>(c.t0_us));
+    return 2;
   }
   c.duration_given = dur->count() > 0;
   c.view_given = az->count() > 0 || el->count() > 0;

@@ -275,7 +275,7 @@ TEST(CameraLoaderErrors, NameFileAndField) {
   EXPECT_EQ(model_error_message([&] {
               (void)parse_camera("camera:\n  width: 0\n  height: 260\n  fx: 265\n  fy: 265\n" + ok_tail, "cam.yaml");
             }),
-            "cam.yaml: camera.width: must be a positive pixel count (1..65535), got 0");
+            "cam.yaml: camera.width: must be a positive pixel count (1..2048), got 0");
   EXPECT_EQ(model_error_message([&] {
               (void)parse_camera("camera:\n  width: 346.5\n  height: 260\n  fx: 265\n  fy: 265\n" + ok_tail,
                                  "cam.yaml");
@@ -345,6 +345,27 @@ TEST(CameraLoaderErrors, FileStorageAndFiles) {
   EXPECT_EQ(model_error_message([&] { (void)load_camera(path); }), path + ": camera.fx: must be > 0, got -3");
   EXPECT_THAT(model_error_message([&] { (void)load_camera("/nonexistent/cam.yaml"); }),
               HasSubstr("/nonexistent/cam.yaml: cannot open"));
+}
+
+// Issue 17: implausible calibrations (fx 1e-300) and sensor sizes beyond the largest evpipe accepts were loaded.
+TEST(CameraLoaderErrors, ImplausibleFocalLengthPrincipalPointAndSize) {
+  const auto cam = [](const std::string& wh, const std::string& f, const std::string& c) {
+    return "camera:\n" + wh + "  fx: " + f + "\n  fy: 265\n" + c + "  distortion: [0, 0, 0, 0, 0]\n";
+  };
+  const std::string wh = "  width: 346\n  height: 260\n";
+  const std::string cc = "  cx: 173\n  cy: 130\n";
+  EXPECT_THAT(model_error_message([&] { (void)parse_camera(cam(wh, "1e-300", cc), "cam.yaml"); }),
+              HasSubstr("cam.yaml: camera.fx: 1e-300 px is not a plausible focal length for a 346x260 image"));
+  EXPECT_THAT(model_error_message([&] { (void)parse_camera(cam(wh, "1e300", cc), "cam.yaml"); }),
+              HasSubstr("cam.yaml: camera.fx: "));
+  EXPECT_THAT(model_error_message([&] { (void)parse_camera(cam(wh, "265", "  cx: 5000\n  cy: 130\n"), "cam.yaml"); }),
+              HasSubstr("cam.yaml: camera.cx: principal point 5000 px is far outside"));
+  EXPECT_THAT(
+      model_error_message([&] { (void)parse_camera(cam("  width: 4096\n  height: 260\n", "265", cc), "cam.yaml"); }),
+      HasSubstr("cam.yaml: camera.width: must be a positive pixel count (1..2048), got 4096"));
+  // Plausible ends: a 179-degree fisheye and a long lens.
+  EXPECT_NO_THROW((void)parse_camera(cam(wh, "2", cc), "cam.yaml"));
+  EXPECT_NO_THROW((void)parse_camera(cam(wh, "100000", cc), "cam.yaml"));
 }
 
 }  // namespace

@@ -28,8 +28,8 @@ TEST(YamlWriter, CameraRoundTripIsExact) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int i = 0; i < 200; ++i) {
     CameraModel c;
-    c.width = 1 + static_cast<int>(rng() % 4000);
-    c.height = 1 + static_cast<int>(rng() % 3000);
+    c.width = 64 + static_cast<int>(rng() % 1985);  // up to kMaxSensorSide (2048)
+    c.height = 64 + static_cast<int>(rng() % 1985);
     c.fx = 100.0 + 900.0 * std::abs(u(rng));
     c.fy = c.fx * (1.0 + 0.01 * u(rng));
     c.cx = c.width * (0.5 + 0.1 * u(rng));

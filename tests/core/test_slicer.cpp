@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <map>
 #include <random>
 
@@ -145,4 +146,53 @@ TEST(StreamStats, EmptyStream) {
   EXPECT_FALSE(st.first_t_us());
   EXPECT_EQ(st.mean_rate_hz(), 0.0);
   EXPECT_EQ(st.peak_rate_hz(), 0.0);
+}
+
+// Issue 17 row 2: with t0 + window past INT64_MAX (a huge window, or a recording stamped near the end of the time
+// line) the sums wrapped and emit_ready spun for ever. Every sum is now overflow-safe: the grid ends there.
+TEST(TimeSlicer, TimesNearTheEndOfTheTimeLineEndTheGridInsteadOfWrapping) {
+  constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
+  const auto batch_of = [](std::vector<std::int64_t> times, bool discontinuity = false) {
+    auto b = std::make_shared<EventBatch>();
+    for (const auto t : times) b->events.push_back({t, 1, 1, true});
+    b->discontinuity_before = discontinuity;
+    return EventBatchPtr(b);
+  };
+  for (const std::int64_t window : {std::int64_t{30'000}, kMax}) {
+    for (const std::int64_t hop : {std::int64_t{30'000}, kMax / 2, kMax}) {
+      SCOPED_TRACE(std::to_string(window) + " / " + std::to_string(hop));
+      std::vector<std::pair<std::int64_t, std::int64_t>> windows;
+      TimeSlicer slicer({window, hop, std::nullopt},
+                        [&](const EventWindow& w) { windows.emplace_back(w.t0_us, w.t1_us); });
+      slicer.accept(batch_of({kMax - 50'000, kMax - 40'000, kMax - 10}));
+      slicer.accept(batch_of({kMax - 5, kMax}));
+      slicer.flush();
+      ASSERT_FALSE(windows.empty());
+      ASSERT_LT(windows.size(), 10U);
+      for (const auto& [t0, t1] : windows) EXPECT_LE(t0, t1);
+      EXPECT_EQ(windows.front().first, kMax - 50'000);
+      // A discontinuity restarts the grid at the next event.
+      windows.clear();
+      slicer.accept(batch_of({100, 200}, true));
+      slicer.flush();
+      ASSERT_FALSE(windows.empty());
+      EXPECT_EQ(windows.front().first, 100);
+    }
+  }
+}
+
+// The jump over an empty stretch from the far negative end to the far positive end of the time line.
+TEST(TimeSlicer, JumpAcrossTheWholeTimeLine) {
+  constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
+  constexpr std::int64_t kMin = std::numeric_limits<std::int64_t>::min();
+  std::vector<std::int64_t> starts;
+  TimeSlicer slicer({30'000, 30'000, std::nullopt}, [&](const EventWindow& w) { starts.push_back(w.t0_us); });
+  auto b = std::make_shared<EventBatch>();
+  b->events = {{kMin + 1, 1, 1, true}, {kMax - 1, 1, 1, true}};
+  slicer.accept(b);
+  slicer.flush();
+  ASSERT_EQ(starts.size(), 2U);
+  EXPECT_EQ(starts[0], kMin + 1);
+  EXPECT_LE(starts[1], kMax - 1);
+  EXPECT_GT(starts[1], kMax - 1 - 30'000);
 }

@@ -372,3 +372,43 @@ TEST(RandomThinning, KeepsTheRequestedShareWhateverThePushes) {
 
 }  // namespace
 }  // namespace evpipe::denoise
+
+namespace evpipe::denoise {
+namespace {
+
+// Issue 17 row 3: a declared 65536 x 65536 sensor made baf, ynoise and stcf abort on bad_alloc and curvature spend
+// minutes in its exposure model. Every filter now refuses a sensor beyond kMaxSensorSide with a message naming it,
+// before allocating; at the largest accepted size every filter builds.
+TEST(PixelBudget, EveryFilterRefusesASensorBeyondTheLargestAndBuildsAtIt) {
+  for (const auto& spec : filter_specs()) {
+    SCOPED_TRACE(std::string(spec.name));
+    for (const SensorGeometry g : {SensorGeometry{65536, 65536}, SensorGeometry{kMaxSensorSide + 1, 10},
+                                   SensorGeometry{10, kMaxSensorSide + 1}, SensorGeometry{0, 10}}) {
+      try {
+        (void)make_filter(spec.name, {}, g);
+        ADD_FAILURE() << "built for " << g.width << "x" << g.height;
+      } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("beyond the largest evpipe accepts"), std::string::npos) << e.what();
+      }
+    }
+  }
+  // The largest accepted sensor: the filters that keep per-pixel state stay within the budget.
+  for (const char* name : {"baf", "ynoise", "stcf", "hotpixel", "curvature", "significance"}) {
+    SCOPED_TRACE(name);
+    EXPECT_NO_THROW((void)make_filter(name, {}, SensorGeometry{kMaxSensorSide, kMaxSensorSide}));
+  }
+}
+
+TEST(PixelBudget, CheckNamesTheFilterAndTheBudget) {
+  EXPECT_NO_THROW(check_pixel_budget("x", SensorGeometry{kMaxSensorSide, kMaxSensorSide}, kMaxFilterBytesPerPixel));
+  try {
+    check_pixel_budget("x", SensorGeometry{kMaxSensorSide, kMaxSensorSide}, kMaxFilterBytesPerPixel + 1);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("x: its per-pixel state for a 2048x2048 sensor would take"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace evpipe::denoise

@@ -600,6 +600,25 @@ TEST_F(Aedat4Files, WithoutStreamTableEventsAreFoundByIdentifier) {
   ASSERT_EQ(d.warnings.size(), 1u);
 }
 
+// Issue 17 row 3: a stream declaring a sensor beyond the largest evpipe accepts (up to 32768 was taken) made the
+// filters try to allocate per-pixel state for it. Refused at the header, naming the file and offset.
+TEST_F(Aedat4Files, DeclaredSensorBeyondTheLargestIsAnError) {
+  const SensorGeometry g{1000, 1000};
+  WriterOptions w;
+  w.geometry = g;
+  Bytes b = write(synthetic_events(100, g), w);
+  ASSERT_TRUE(patch_text(b, "\"sizeX\" type=\"int\">1000<", "\"sizeX\" type=\"int\">9000<"));
+  try {
+    (void)decode_bytes(b);
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(
+        std::string(e.what()).find("declares a 9000x1000 sensor: larger than the largest evpipe accepts (2048x2048"),
+        std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Sha1, KnownVectors) {
   EXPECT_EQ(evpipe::testing::sha1_hex(""), "da39a3ee5e6b4b0d3255bfef95601890afd80709");
   EXPECT_EQ(evpipe::testing::sha1_hex("abc"), "a9993e364706816aba3e25717850c26c9cd0d89d");

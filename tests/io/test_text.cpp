@@ -333,5 +333,18 @@ TEST(TextWriter, RejectsInconsistentInput) {
   EXPECT_THROW(io::open_writer("/nonexistent-dir/x.txt", io::Format::text), SourceError);
 }
 
+// Issue 17 row 3: '# width=65536 height=65536' was accepted and the filters then tried to allocate per-pixel state
+// for 2^32 pixels (bad_alloc abort). A declared size beyond kMaxSensorSide is an error naming the line.
+TEST(Text, SensorSizeBeyondTheLargestAcceptedIsAnError) {
+  expect_error("# width=65536 height=65536\n1 1 1 1\n", 1, "0 < N <= 2048");
+  expect_error("# width=2049 height=10\n1 1 1 1\n", 1, "the largest sensor evpipe accepts");
+  expect_error("4096 4096\n1 1 1 1\n", 1, "each in 1..2048");
+  EXPECT_EQ(read("# width=2048 height=2048\n1 2047 2047 1\n").events.size(), 1U);
+  // The default size (source.default_width/height) is checked where a reader is opened.
+  ReaderOptions o;
+  o.default_geometry = {4096, 4096};
+  EXPECT_THROW((void)io::open_reader(io::memory_source(bytes_of("1 1 1 1\n")), o), FormatError);
+}
+
 }  // namespace
 }  // namespace evpipe::testing

@@ -1,7 +1,10 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdint>
+#include <limits>
 #include <thread>
+#include <vector>
 
 #include "evpipe/pipeline/paced_source.hpp"
 #include "vector_source.hpp"
@@ -73,4 +76,28 @@ TEST(PacedSource, StopEndsASleep) {
 TEST(PacedSource, RejectsBadSpeed) {
   EXPECT_THROW(pipeline::PacedSource(std::make_unique<VectorSource>(std::vector<EventBatchPtr>{}), 0.0),
                std::invalid_argument);
+}
+
+// Issue 17 row 2: sums of times near the ends of the int64 line overflowed (the chunk end start_t + chunk_us, the
+// wait t - anchor, and the steady clock's nanoseconds). Events at the end of the line are delivered in order; a
+// jump across the whole line is a (capped) wait that stop() ends.
+TEST(PacedSource, TimesAtTheEndsOfTheTimeLine) {
+  constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
+  constexpr std::int64_t kMin = std::numeric_limits<std::int64_t>::min();
+  auto inner = std::make_unique<VectorSource>(std::vector<EventBatchPtr>{batch({kMax - 10, kMax - 5, kMax})});
+  pipeline::PacedSource paced(std::move(inner), 1000.0);
+  std::vector<std::int64_t> seen;
+  while (auto b = paced.next())
+    for (const auto& e : b->events) seen.push_back(e.t_us);
+  EXPECT_EQ(seen, (std::vector<std::int64_t>{kMax - 10, kMax - 5, kMax}));
+
+  auto across = std::make_unique<VectorSource>(std::vector<EventBatchPtr>{batch({kMin, kMax})});
+  pipeline::PacedSource far(std::move(across), 1.0);
+  ASSERT_TRUE(far.next());
+  std::thread stopper([&far] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    far.stop();
+  });
+  EXPECT_EQ(far.next(), nullptr);
+  stopper.join();
 }

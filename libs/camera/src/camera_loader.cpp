@@ -2,20 +2,28 @@
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/error.hpp"
+#include "evpipe/core/event.hpp"
 #include "text_file.hpp"
 #include "yaml_util.hpp"
 
 #include <fmt/format.h>
 #include <opencv2/core.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace evpipe::camera {
 namespace {
 
 constexpr std::uintmax_t kMaxCalibrationBytes = 1u << 20;  // a calibration is a few hundred bytes
-constexpr long long kMaxImageSide_px = 65535;
+constexpr long long kMaxImageSide_px = kMaxSensorSide;     // the largest sensor evpipe accepts (core/event.hpp)
+// A focal length is plausible when the field of view across the larger image side is between 0.1 and 179 degrees
+// (fx >= side / 229 and fx <= side * 573): fx: 1e-300 or 1e300 is a broken calibration, not a lens.
+constexpr double kMinFov_deg = 0.1;
+constexpr double kMaxFov_deg = 179.0;
 
 /// OpenCV's own YAML header ("%YAML:1.0", with a colon, which yaml-cpp rejects), its XML and JSON flavours, or
 /// its matrix tag anywhere: then cv::FileStorage reads the file.
@@ -38,6 +46,29 @@ void set_distortion(CameraModel& cam, const std::vector<double>& d, const std::s
 
 void check_positive(double v, const std::string& file, const std::string& field) {
   if (!(v > 0.0)) throw ModelError(file, field, fmt::format("must be > 0, got {}", v));
+}
+
+/// Issue 17: fx 1e-300 was accepted. Checked once width and height are known.
+void check_plausible(const CameraModel& cam, const std::string& file, const std::string& fx_field,
+                     const std::string& fy_field, const std::string& cx_field, const std::string& cy_field) {
+  const double side = std::max(cam.width, cam.height);
+  constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+  const double f_min = side / (2.0 * std::tan(kMaxFov_deg / 2.0 * kDegToRad));
+  const double f_max = side / (2.0 * std::tan(kMinFov_deg / 2.0 * kDegToRad));
+  for (const auto& [f, field] : {std::pair{cam.fx, &fx_field}, std::pair{cam.fy, &fy_field}}) {
+    if (!(f >= f_min && f <= f_max))
+      throw ModelError(file, *field,
+                       fmt::format("{} px is not a plausible focal length for a {}x{} image (expected {:.3g} to {:.3g} "
+                                   "px: a field of view of {} to {} degrees)",
+                                   f, cam.width, cam.height, f_min, f_max, kMinFov_deg, kMaxFov_deg));
+  }
+  for (const auto& [c, n, field] :
+       {std::tuple{cam.cx, cam.width, &cx_field}, std::tuple{cam.cy, cam.height, &cy_field}}) {
+    if (!(c >= -n && c <= 2.0 * n))
+      throw ModelError(file, *field,
+                       fmt::format("principal point {} px is far outside the {}x{} image (expected {} to {})", c,
+                                   cam.width, cam.height, -n, 2 * n));
+  }
 }
 
 void check_side(long long v, const std::string& file, const std::string& field) {
@@ -65,6 +96,7 @@ CameraModel parse_evpipe_yaml(const YAML::Node& root, const std::string& file) {
   if (const YAML::Node d = cam_node["distortion"]; d && !d.IsNull()) {
     set_distortion(cam, detail::to_doubles(d, file, "camera.distortion"), file, "camera.distortion");
   }
+  check_plausible(cam, file, "camera.fx", "camera.fy", "camera.cx", "camera.cy");
   return cam;
 }
 
@@ -185,6 +217,8 @@ CameraModel read_filestorage(const cv::FileStorage& fs, const std::string& file)
   check_side(height, file, "image_height");
   cam.width = static_cast<int>(width);
   cam.height = static_cast<int>(height);
+  check_plausible(cam, file, "camera_matrix[0,0] (fx)", "camera_matrix[1,1] (fy)", "camera_matrix[0,2] (cx)",
+                  "camera_matrix[1,2] (cy)");
   return cam;
 }
 

@@ -1,15 +1,20 @@
 #include "evpipe/config/run_config.hpp"
 
+#include <yaml-cpp/eventhandler.h>
+#include <yaml-cpp/parser.h>
 #include <yaml-cpp/yaml.h>
 
 #include <fmt/format.h>
 #include <algorithm>
+#include <cctype>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
 #include <sstream>
 
+#include "evpipe/core/event.hpp"
 #include "evpipe/core/file.hpp"
 #include "evpipe/core/filter_chain.hpp"
 
@@ -17,173 +22,575 @@ namespace evpipe::config {
 
 namespace {
 
-[[noreturn]] void fail(const std::string& file, const std::string& key, const std::string& why) {
-  throw ConfigError(fmt::format("{}: {}: {}", file, key, why));
+using Type = KeyInfo::Type;
+
+/// One key: what it accepts (KeyInfo) and where it lives in RunConfig. Integers of any width go through int64.
+struct Key {
+  KeyInfo info;
+  std::function<std::int64_t(const RunConfig&)> get_int;
+  std::function<void(RunConfig&, std::int64_t)> set_int;
+  std::function<const std::string&(const RunConfig&)> get_str;
+  std::function<void(RunConfig&, std::string)> set_str;
+  std::function<void(RunConfig&, bool)> set_bool;
+  std::function<double(const RunConfig&)> get_real;
+  std::function<void(RunConfig&, double)> set_real;
+};
+
+template <typename S>
+Key real_key(std::string path, S RunConfig::*section, double S::*field, double lo, double hi) {
+  Key k;
+  k.info.path = std::move(path);
+  k.info.type = KeyInfo::Type::real;
+  k.info.min_real = lo;
+  k.info.max_real = hi;
+  k.get_real = [section, field](const RunConfig& c) { return c.*section.*field; };
+  k.set_real = [section, field](RunConfig& c, double v) { c.*section.*field = v; };
+  return k;
 }
 
-template <typename T>
-T scalar(const YAML::Node& n, const std::string& file, const std::string& key, const char* type_name) {
-  if (!n.IsScalar()) fail(file, key, fmt::format("expected {}, got a {}", type_name, n.IsMap() ? "map" : "list"));
-  try {
-    return n.as<T>();
-  } catch (const YAML::Exception&) {
-    fail(file, key, fmt::format("expected {}, got '{}'", type_name, n.Scalar()));
-  }
+template <typename S, typename T>
+Key int_key(std::string path, S RunConfig::*section, T S::*field, std::int64_t lo, std::int64_t hi,
+            std::string reason = {}, std::int64_t multiple_of = 1) {
+  Key k;
+  k.info.path = std::move(path);
+  k.info.type = Type::integer;
+  k.info.min = lo;
+  k.info.max = hi;
+  k.info.multiple_of = multiple_of;
+  k.info.reason = std::move(reason);
+  k.get_int = [section, field](const RunConfig& c) { return static_cast<std::int64_t>(c.*section.*field); };
+  k.set_int = [section, field](RunConfig& c, std::int64_t v) { c.*section.*field = static_cast<T>(v); };
+  return k;
 }
 
-using Setter = std::function<void(const YAML::Node&, const std::string& key)>;
+template <typename S>
+Key str_key(std::string path, S RunConfig::*section, std::string S::*field, bool non_empty = false,
+            std::size_t max_length = 4096, std::vector<std::string> choices = {}) {
+  Key k;
+  k.info.path = std::move(path);
+  k.info.type = choices.empty() ? Type::string : Type::choice;
+  k.info.non_empty = non_empty;
+  k.info.max_length = max_length;
+  k.info.choices = std::move(choices);
+  k.get_str = [section, field](const RunConfig& c) -> const std::string& { return c.*section.*field; };
+  k.set_str = [section, field](RunConfig& c, std::string v) { c.*section.*field = std::move(v); };
+  return k;
+}
 
-/// Applies a map of known keys to one YAML section; unknown keys are errors.
-void apply_section(const YAML::Node& section, const std::string& file, const std::string& prefix,
-                   const std::map<std::string, Setter>& keys) {
-  if (!section) return;
-  if (section.IsNull()) return;
-  if (!section.IsMap()) fail(file, prefix, "expected a map of keys");
-  for (const auto& kv : section) {
-    const auto name = kv.first.as<std::string>();
-    const std::string key = prefix + "." + name;
-    auto it = keys.find(name);
-    if (it == keys.end()) {
-      std::string known;
-      for (const auto& [k, _] : keys) known += (known.empty() ? "" : ", ") + k;
-      fail(file, key, fmt::format("unknown key (known keys in '{}': {})", prefix, known));
+template <typename S>
+Key bool_key(std::string path, S RunConfig::*section, bool S::*field) {
+  Key k;
+  k.info.path = std::move(path);
+  k.info.type = Type::boolean;
+  k.set_bool = [section, field](RunConfig& c, bool v) { c.*section.*field = v; };
+  return k;
+}
+
+Key special_key(std::string path, Type type, std::int64_t lo = 0, std::int64_t hi = 0) {
+  Key k;
+  k.info.path = std::move(path);
+  k.info.type = type;
+  k.info.min = lo;
+  k.info.max = hi;
+  return k;
+}
+
+constexpr std::int64_t kFpgaStepUs = 250;
+constexpr std::int64_t kFpgaMaxUs = 4095 * kFpgaStepUs;
+constexpr std::size_t kLcmChannelMax = 63;  // LCM_MAX_CHANNEL_NAME_LENGTH
+
+const std::vector<Key>& keys() {
+  static const std::vector<Key> table = [] {
+    using R = RunConfig;
+    std::vector<Key> t;
+    t.push_back(str_key("log.level", &R::log, &LogConfig::level, true, 16,
+                        {"trace", "debug", "info", "warn", "error", "critical", "off"}));
+    t.push_back(str_key("source.replay", &R::source, &SourceConfig::replay));
+    t.push_back(special_key("source.speed", Type::speed));
+    t.push_back(int_key("source.batch_events", &R::source, &SourceConfig::batch_events, 1, 1'000'000,
+                        "at most pipeline.source_queue_events; 1000000 events = 16 MB per batch"));
+    t.push_back(bool_key("source.drop_out_of_order", &R::source, &SourceConfig::drop_out_of_order));
+    t.push_back(int_key("source.discontinuity_us", &R::source, &SourceConfig::discontinuity_us, 1, 3'600'000'000,
+                        "a backward jump of up to an hour"));
+    const std::string sensor = fmt::format("the largest sensor evpipe accepts is {0}x{0}", evpipe::kMaxSensorSide);
+    t.push_back(
+        int_key("source.default_width", &R::source, &SourceConfig::default_width, 1, evpipe::kMaxSensorSide, sensor));
+    t.push_back(
+        int_key("source.default_height", &R::source, &SourceConfig::default_height, 1, evpipe::kMaxSensorSide, sensor));
+    t.push_back(bool_key("source.aedat2_flip_y", &R::source, &SourceConfig::aedat2_flip_y));
+    t.push_back(bool_key("source.aedat2_flip_x", &R::source, &SourceConfig::aedat2_flip_x));
+    t.push_back(str_key("device.serial", &R::device, &DeviceConfig::serial, false, 256));
+    t.push_back(bool_key("device.ba_filter", &R::device, &DeviceConfig::ba_filter));
+    const std::string fpga = "the FPGA counts 250 us steps in 12 bits";
+    t.push_back(int_key("device.ba_filter_time_us", &R::device, &DeviceConfig::ba_filter_time_us, 0, kFpgaMaxUs, fpga,
+                        kFpgaStepUs));
+    t.push_back(bool_key("device.refractory", &R::device, &DeviceConfig::refractory));
+    t.push_back(int_key("device.refractory_time_us", &R::device, &DeviceConfig::refractory_time_us, 0, kFpgaMaxUs, fpga,
+                        kFpgaStepUs));
+    t.push_back(
+        int_key("device.container_interval_us", &R::device, &DeviceConfig::container_interval_us, 100, 1'000'000));
+    t.push_back(int_key("device.reconnect_interval_ms", &R::device, &DeviceConfig::reconnect_interval_ms, 10, 600'000,
+                        "retry an unplugged camera at least every 10 minutes"));
+    t.push_back(int_key("window.length_us", &R::window, &WindowConfig::length_us, kMinHopUs, 1'000'000,
+                        "1 ms to 1 s; a window holds up to 12 M events (200 MB) per second of length at the "
+                        "DAVIS346's peak rate"));
+    t.push_back(int_key("window.hop_us", &R::window, &WindowConfig::hop_us, kMinHopUs, 1'000'000,
+                        fmt::format("at most window.length_us and at least window.length_us / {}: at most 1000 "
+                                    "windows per second and each event in at most {} windows",
+                                    kMaxWindowOverlap, kMaxWindowOverlap)));
+    t.push_back(str_key("denoise.filter", &R::denoise, &DenoiseConfig::filter, true, 256));
+    t.push_back(special_key("denoise.params", Type::params));
+    t.push_back(special_key("denoise.threads", Type::threads, 1, 64));
+    t.push_back(str_key("pose.camera", &R::pose, &PoseFilesConfig::camera));
+    t.push_back(str_key("pose.model", &R::pose, &PoseFilesConfig::model));
+    t.push_back(str_key("pose.prior", &R::pose, &PoseFilesConfig::prior));
+    t.push_back(str_key("pose.poses_out", &R::pose, &PoseFilesConfig::poses_out));
+    t.push_back(str_key("pose.ground_truth", &R::pose, &PoseFilesConfig::ground_truth));
+    t.push_back(int_key("pose.lost_after_windows", &R::pose, &PoseFilesConfig::lost_after_windows, 1, 10'000));
+    t.push_back(str_key("pose.init_worker", &R::pose, &PoseFilesConfig::init_worker, true, 8, {"auto", "on", "off"}));
+    t.push_back(int_key("pose.init_worker_nice", &R::pose, &PoseFilesConfig::init_worker_nice, 0, 19,
+                        "nice increments are 0-19"));
+    t.push_back(bool_key("lcm.enabled", &R::lcm, &LcmConfig::enabled));
+    t.push_back(str_key("lcm.url", &R::lcm, &LcmConfig::url, false, 1024));
+    t.push_back(str_key("lcm.pose_channel", &R::lcm, &LcmConfig::pose_channel, true, kLcmChannelMax));
+    t.push_back(str_key("lcm.stats_channel", &R::lcm, &LcmConfig::stats_channel, true, kLcmChannelMax));
+    t.push_back(int_key("lcm.stats_period_ms", &R::lcm, &LcmConfig::stats_period_ms, 10, 1000,
+                        "interfaces.md: at least once a second"));
+    t.push_back(bool_key("lcm.preview", &R::lcm, &LcmConfig::preview));
+    t.push_back(real_key("lcm.preview_hz", &R::lcm, &LcmConfig::preview_hz, 0.1, 30.0));
+    t.push_back(str_key("lcm.preview_channel", &R::lcm, &LcmConfig::preview_channel, true, kLcmChannelMax));
+    t.push_back(
+        int_key("pipeline.source_queue_packets", &R::pipeline, &PipelineConfig::source_queue_packets, 2, 65536));
+    t.push_back(int_key("pipeline.source_queue_events", &R::pipeline, &PipelineConfig::source_queue_events, 1000,
+                        100'000'000, "100000000 events = 1.6 GB"));
+    t.push_back(int_key("pipeline.pose_queue_windows", &R::pipeline, &PipelineConfig::pose_queue_windows, 1, 1024));
+    t.push_back(int_key("pipeline.publish_queue", &R::pipeline, &PipelineConfig::publish_queue, 1, 65536));
+    return t;
+  }();
+  return table;
+}
+
+const Key* find_key(std::string_view path) {
+  for (const auto& k : keys())
+    if (k.info.path == path) return &k;
+  return nullptr;
+}
+
+/// A key's complaint: path and reason; the caller adds the file and line.
+struct Problem {
+  std::string key;
+  std::string why;
+};
+
+std::string range_text(const KeyInfo& k) {
+  return k.multiple_of > 1 ? fmt::format("a multiple of {} in [{}, {}]", k.multiple_of, k.min, k.max)
+                           : fmt::format("in [{}, {}]", k.min, k.max);
+}
+
+std::string with_reason(std::string why, const KeyInfo& k) {
+  return k.reason.empty() ? why : fmt::format("{} ({})", why, k.reason);
+}
+
+std::optional<std::string> check_int(const KeyInfo& k, std::int64_t v) {
+  if (v < k.min || v > k.max || v % k.multiple_of != 0)
+    return with_reason(fmt::format("must be {}, got {}", range_text(k), v), k);
+  return std::nullopt;
+}
+
+/// Valid UTF-8 with no control character but tab: what a path, URL or channel name holds, and what the effective
+/// configuration prints and loads again unchanged (fuzz_config: invalid UTF-8 came back altered from to_yaml()).
+bool printable_utf8(std::string_view v) {
+  for (std::size_t i = 0; i < v.size();) {
+    const auto c = static_cast<unsigned char>(v[i]);
+    if (c < 0x80) {
+      if ((c < 0x20 && c != '\t') || c == 0x7F) return false;
+      ++i;
+      continue;
     }
-    it->second(kv.second, key);
+    std::size_t n = 0;
+    std::uint32_t cp = 0;
+    if ((c & 0xE0U) == 0xC0U) {
+      n = 1;
+      cp = c & 0x1FU;
+    } else if ((c & 0xF0U) == 0xE0U) {
+      n = 2;
+      cp = c & 0x0FU;
+    } else if ((c & 0xF8U) == 0xF0U) {
+      n = 3;
+      cp = c & 0x07U;
+    } else {
+      return false;
+    }
+    if (i + n >= v.size()) return false;
+    for (std::size_t k = 1; k <= n; ++k) {
+      const auto d = static_cast<unsigned char>(v[i + k]);
+      if ((d & 0xC0U) != 0x80U) return false;
+      cp = (cp << 6U) | (d & 0x3FU);
+    }
+    static constexpr std::uint32_t kMinOf[] = {0, 0x80, 0x800, 0x10000};
+    if (cp < kMinOf[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF) || cp < 0xA0) return false;
+    i += n + 1;
   }
+  return true;
+}
+
+std::optional<std::string> check_str(const KeyInfo& k, const std::string& v) {
+  if (k.non_empty && v.empty()) return std::string("must not be empty");
+  if (!k.choices.empty()) {
+    if (std::find(k.choices.begin(), k.choices.end(), v) != k.choices.end()) return std::nullopt;
+    std::string list;
+    for (const auto& c : k.choices) list += (list.empty() ? "" : ", ") + c;
+    return fmt::format("must be one of {}, got '{}'", list, v.substr(0, 64));
+  }
+  if (v.find('\0') != std::string::npos) return std::string("must not contain a NUL character");
+  if (v.size() > k.max_length) return fmt::format("must be at most {} bytes long, got {}", k.max_length, v.size());
+  if (!printable_utf8(v)) return std::string("must be UTF-8 text without control characters");
+  return std::nullopt;
+}
+
+/// Strict decimal integer (an optional sign, digits); anything else, or out of int64, is an error.
+std::optional<std::int64_t> parse_int(const std::string& text, bool& out_of_range) {
+  out_of_range = false;
+  std::string_view s = text;
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  if (s.empty()) return std::nullopt;
+  std::int64_t v = 0;
+  const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec == std::errc::result_out_of_range) {
+    out_of_range = true;
+    return std::nullopt;
+  }
+  if (ec != std::errc{} || ptr != s.data() + s.size()) return std::nullopt;
+  return v;
+}
+
+std::optional<bool> parse_bool(const std::string& text) {
+  // YAML 1.2 core schema spellings, plus the 1.1 ones yaml-cpp accepts.
+  static const char* yes[] = {"true", "True", "TRUE", "yes", "Yes", "YES", "on", "On", "ON", "y", "Y"};
+  static const char* no[] = {"false", "False", "FALSE", "no", "No", "NO", "off", "Off", "OFF", "n", "N"};
+  for (const char* y : yes)
+    if (text == y) return true;
+  for (const char* n : no)
+    if (text == n) return false;
+  return std::nullopt;
+}
+
+std::optional<double> parse_number(const std::string& text) {
+  if (text.empty() || std::isspace(static_cast<unsigned char>(text.front())) != 0) return std::nullopt;
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(v)) return std::nullopt;
+    return v;
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+std::string real_error(const KeyInfo& k, const std::string& got) {
+  return fmt::format("must be a number in [{}, {}], got '{}'", k.min_real, k.max_real, got);
+}
+
+std::string speed_error(const std::string& got) {
+  return fmt::format("must be 'max' or a number in [{}, {}], got '{}'", kMinSpeed, kMaxSpeed, got);
+}
+
+/// How a node that is not the expected scalar is named in errors.
+std::string node_kind(const YAML::Node& n) {
+  if (!n.IsDefined()) return "nothing";
+  if (n.IsNull()) return "null (no value)";
+  if (n.IsSequence()) return "a sequence";
+  if (n.IsMap()) return "a map";
+  return fmt::format("'{}'", n.Scalar());
+}
+
+/// The file being parsed: errors name it and the line of the offending node.
+struct Doc {
+  const std::string& name;
+
+  [[noreturn]] void fail(const YAML::Node& at, const std::string& key, const std::string& why) const {
+    const auto mark = at.Mark();
+    if (mark.is_null()) throw ConfigError(fmt::format("{}: {}: {}", name, key, why));
+    throw ConfigError(fmt::format("{}: line {}: {}: {}", name, mark.line + 1, key, why));
+  }
+
+  /// The text of a scalar node; any other node type is an error naming what it is.
+  /// `at` is the node whose line errors name: the key (an aliased value's own mark is its anchor's line).
+  std::string scalar(const YAML::Node& n, const YAML::Node& at, const std::string& key, const char* expected) const {
+    if (!n.IsScalar()) fail(at, key, fmt::format("expected {}, got {}", expected, node_kind(n)));
+    return n.Scalar();
+  }
+
+  /// A map key: a plain scalar name (a sequence or map as a key, `? [a, b]`, is an error).
+  std::string key_name(const YAML::Node& k, const std::string& prefix) const {
+    const std::string where = prefix.empty() ? "<top level>" : prefix;
+    if (!k.IsScalar()) fail(k, where, fmt::format("a key must be a plain name, got {}", node_kind(k)));
+    return k.Scalar();
+  }
+};
+
+/// Iterates a map's entries with scalar, unique keys.
+template <typename F>
+void for_each_entry(const Doc& doc, const YAML::Node& map, const std::string& prefix, F&& f) {
+  std::map<std::string, int> seen;  // name → line
+  for (const auto& kv : map) {
+    const std::string name = doc.key_name(kv.first, prefix);
+    const std::string key = prefix.empty() ? name : prefix + "." + name;
+    const int line = kv.first.Mark().line + 1;
+    if (const auto [it, fresh] = seen.emplace(name, line); !fresh)
+      doc.fail(kv.first, key, fmt::format("duplicate key (first on line {})", it->second));
+    f(name, key, kv.second, kv.first);
+  }
+}
+
+void set_value(const Doc& doc, const Key& k, const YAML::Node& n, const YAML::Node& at, RunConfig& c) {
+  const auto& info = k.info;
+  const std::string& key = info.path;
+  switch (info.type) {
+    case Type::string:
+    case Type::choice: {
+      std::string expected = "a string";
+      if (info.type == Type::choice) {
+        expected = "one of";
+        for (const auto& choice : info.choices) expected += (expected.size() > 6 ? ", " : " ") + choice;
+      }
+      auto v = doc.scalar(n, at, key, expected.c_str());
+      if (const auto why = check_str(info, v)) doc.fail(at, key, *why);
+      k.set_str(c, std::move(v));
+      return;
+    }
+    case Type::boolean: {
+      const auto v = parse_bool(doc.scalar(n, at, key, "true or false"));
+      if (!v) doc.fail(at, key, fmt::format("expected true or false, got '{}'", n.Scalar()));
+      k.set_bool(c, *v);
+      return;
+    }
+    case Type::integer: {
+      const auto text = doc.scalar(n, at, key, "an integer");
+      bool out_of_range = false;
+      const auto v = parse_int(text, out_of_range);
+      if (out_of_range) doc.fail(at, key, with_reason(fmt::format("must be {}, got {}", range_text(info), text), info));
+      if (!v) doc.fail(at, key, fmt::format("expected an integer, got '{}'", text));
+      if (const auto why = check_int(info, *v)) doc.fail(at, key, *why);
+      k.set_int(c, *v);
+      return;
+    }
+    case Type::real: {
+      const auto text = doc.scalar(n, at, key, "a number");
+      const auto v = parse_number(text);
+      if (!v || !(*v >= info.min_real && *v <= info.max_real)) doc.fail(at, key, real_error(info, text));
+      k.set_real(c, *v);
+      return;
+    }
+    case Type::speed: {
+      const auto text = doc.scalar(n, at, key, "a number or 'max'");
+      if (text == "max") {
+        c.source.speed = std::nullopt;
+        return;
+      }
+      const auto v = parse_number(text);
+      if (!v || *v < kMinSpeed || *v > kMaxSpeed) doc.fail(at, key, speed_error(text));
+      c.source.speed = *v;
+      return;
+    }
+    case Type::threads: {
+      const auto text = doc.scalar(n, at, key, "a number or 'auto'");
+      if (text == "auto") {
+        c.denoise.threads = 0;
+        return;
+      }
+      bool out_of_range = false;
+      const auto v = parse_int(text, out_of_range);
+      if (!v && !out_of_range) doc.fail(at, key, fmt::format("expected a number or 'auto', got '{}'", text));
+      if (!v || *v < info.min || *v > info.max)
+        doc.fail(at, key, fmt::format("must be 'auto' or in [{}, {}], got {}", info.min, info.max, text));
+      c.denoise.threads = static_cast<int>(*v);
+      return;
+    }
+    case Type::params: {
+      if (n.IsNull()) return;
+      if (!n.IsMap()) doc.fail(at, key, fmt::format("expected a map of KEY: value, got {}", node_kind(n)));
+      for_each_entry(
+          doc, n, key,
+          [&](const std::string& name, const std::string& path, const YAML::Node& value, const YAML::Node& name_node) {
+            if (name.empty() || name.size() > 256 || !printable_utf8(name))
+              doc.fail(name_node, path,
+                       "a parameter name must be 1-256 bytes of UTF-8 text without control characters");
+            auto text = doc.scalar(value, name_node, path, "a scalar value");
+            if (text.size() > 4096 || !printable_utf8(text))
+              doc.fail(name_node, path, "must be at most 4096 bytes of UTF-8 text without control characters");
+            c.denoise.params.emplace_back(name, std::move(text));
+          });
+      return;
+    }
+  }
+}
+
+/// The checks of validate(): the first problem, if any.
+std::optional<Problem> find_problem(const RunConfig& c) {
+  for (const auto& k : keys()) {
+    const auto& info = k.info;
+    std::optional<std::string> why;
+    switch (info.type) {
+      case Type::string:
+      case Type::choice:
+        why = check_str(info, k.get_str(c));
+        break;
+      case Type::integer:
+        why = check_int(info, k.get_int(c));
+        break;
+      case Type::real:
+        if (const double v = k.get_real(c); !(v >= info.min_real && v <= info.max_real))
+          why = real_error(info, fmt::format("{}", v));
+        break;
+      case Type::speed:
+        if (c.source.speed && !(*c.source.speed >= kMinSpeed && *c.source.speed <= kMaxSpeed))
+          why = speed_error(fmt::format("{}", *c.source.speed));
+        break;
+      case Type::threads:
+        if (c.denoise.threads != 0 && (c.denoise.threads < info.min || c.denoise.threads > info.max))
+          why = fmt::format("must be 'auto' or in [{}, {}], got {}", info.min, info.max, c.denoise.threads);
+        break;
+      case Type::boolean:
+      case Type::params:
+        break;
+    }
+    if (why) return Problem{info.path, *why};
+  }
+  // Consistency between keys (each within its own range by now, so no sum or quotient below can overflow).
+  const auto& w = c.window;
+  if (w.hop_us > w.length_us)
+    return Problem{"window.hop_us",
+                   fmt::format("must be at most window.length_us = {}, got {}", w.length_us, w.hop_us)};
+  if (w.hop_us * kMaxWindowOverlap < w.length_us)
+    return Problem{"window.hop_us",
+                   fmt::format("must be at least window.length_us / {} = {} (each event in at most {} windows), got {}",
+                               kMaxWindowOverlap, (w.length_us + kMaxWindowOverlap - 1) / kMaxWindowOverlap,
+                               kMaxWindowOverlap, w.hop_us)};
+  if (c.source.batch_events > c.pipeline.source_queue_events)
+    return Problem{"source.batch_events",
+                   fmt::format("must be at most pipeline.source_queue_events = {} (a batch must fit the queue's event "
+                               "bound), got {}",
+                               c.pipeline.source_queue_events, c.source.batch_events)};
+  return std::nullopt;
+}
+
+/// Where a second YAML document with content starts, if any (a config is one document: a second one would be
+/// ignored silently). Not YAML::LoadAll: yaml-cpp 0.7's loops for ever on some malformed input (found by
+/// fuzz_config); the parser is asked for at most two documents here.
+class ContentSeen : public YAML::EventHandler {
+ public:
+  std::optional<YAML::Mark> first;
+  void OnDocumentStart(const YAML::Mark& /*mark*/) override {}
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t /*anchor*/) override { see(mark); }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t /*anchor*/) override { see(mark); }
+  void OnScalar(const YAML::Mark& mark, const std::string& /*tag*/, YAML::anchor_t /*anchor*/,
+                const std::string& /*value*/) override {
+    see(mark);
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string& /*tag*/, YAML::anchor_t /*anchor*/,
+                       YAML::EmitterStyle::value /*style*/) override {
+    see(mark);
+  }
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark& mark, const std::string& /*tag*/, YAML::anchor_t /*anchor*/,
+                  YAML::EmitterStyle::value /*style*/) override {
+    see(mark);
+  }
+  void OnMapEnd() override {}
+
+ private:
+  void see(const YAML::Mark& mark) {
+    if (!first) first = mark;
+  }
+};
+
+std::optional<YAML::Mark> second_document(const std::string& text) {
+  std::istringstream in(text);
+  YAML::Parser parser(in);
+  ContentSeen skip;
+  if (!parser.HandleNextDocument(skip)) return std::nullopt;
+  ContentSeen next;
+  if (!parser.HandleNextDocument(next)) return std::nullopt;
+  return next.first;
 }
 
 }  // namespace
 
+const std::vector<KeyInfo>& config_keys() {
+  static const std::vector<KeyInfo> infos = [] {
+    std::vector<KeyInfo> out;
+    for (const auto& k : keys()) out.push_back(k.info);
+    return out;
+  }();
+  return infos;
+}
+
 std::optional<double> parse_speed(const std::string& text, const std::string& where) {
   if (text == "max") return std::nullopt;
-  try {
-    std::size_t used = 0;
-    const double v = std::stod(text, &used);
-    if (used != text.size() || !std::isfinite(v) || v <= 0) throw std::invalid_argument(text);
-    return v;
-  } catch (const std::exception&) {
-    throw ConfigError(fmt::format("{}: speed must be a positive number or 'max', got '{}'", where, text));
-  }
+  const auto v = parse_number(text);
+  if (!v || *v < kMinSpeed || *v > kMaxSpeed) throw ConfigError(fmt::format("{}: speed {}", where, speed_error(text)));
+  return v;
 }
 
 RunConfig parse_config(const std::string& yaml_text, const std::string& name) {
+  const Doc doc{name};
   YAML::Node root;
+  std::optional<YAML::Mark> second;
   try {
     root = YAML::Load(yaml_text);
+    second = second_document(yaml_text);
   } catch (const YAML::ParserException& e) {
     throw ConfigError(
         fmt::format("{}: line {}, column {}: YAML syntax error: {}", name, e.mark.line + 1, e.mark.column + 1, e.msg));
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(fmt::format("{}: YAML error: {}", name, e.what()));
   }
   RunConfig c;
+  if (second)
+    throw ConfigError(
+        fmt::format("{}: line {}: <document>: one YAML document expected, found a second one", name, second->line + 1));
   if (!root || root.IsNull()) return c;
-  if (!root.IsMap()) fail(name, "<top level>", "expected a map of sections");
+  if (!root.IsMap()) doc.fail(root, "<top level>", fmt::format("expected a map of sections, got {}", node_kind(root)));
 
-  auto str = [&](std::string& dst) {
-    return
-        [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<std::string>(n, name, k, "a string"); };
-  };
-  auto i64 = [&](std::int64_t& dst) {
-    return [&dst, &name](const YAML::Node& n, const std::string& k) {
-      dst = scalar<std::int64_t>(n, name, k, "an integer");
-    };
-  };
-  auto integer = [&](int& dst) {
-    return [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<int>(n, name, k, "an integer"); };
-  };
-  auto boolean = [&](bool& dst) {
-    return
-        [&dst, &name](const YAML::Node& n, const std::string& k) { dst = scalar<bool>(n, name, k, "true or false"); };
-  };
-
-  for (const auto& kv : root) {
-    const auto section = kv.first.as<std::string>();
-    const auto& node = kv.second;
-    if (section == "log") {
-      apply_section(node, name, section, {{"level", str(c.log.level)}});
-    } else if (section == "source") {
-      apply_section(node, name, section,
-                    {{"replay", str(c.source.replay)},
-                     {"speed",
-                      [&](const YAML::Node& n, const std::string& k) {
-                        c.source.speed =
-                            parse_speed(scalar<std::string>(n, name, k, "a number or 'max'"), name + ": " + k);
-                      }},
-                     {"batch_events", i64(c.source.batch_events)},
-                     {"drop_out_of_order", boolean(c.source.drop_out_of_order)},
-                     {"discontinuity_us", i64(c.source.discontinuity_us)},
-                     {"default_width", integer(c.source.default_width)},
-                     {"default_height", integer(c.source.default_height)},
-                     {"aedat2_flip_y", boolean(c.source.aedat2_flip_y)},
-                     {"aedat2_flip_x", boolean(c.source.aedat2_flip_x)}});
-    } else if (section == "device") {
-      apply_section(node, name, section,
-                    {{"serial", str(c.device.serial)},
-                     {"ba_filter", boolean(c.device.ba_filter)},
-                     {"ba_filter_time_us", i64(c.device.ba_filter_time_us)},
-                     {"refractory", boolean(c.device.refractory)},
-                     {"refractory_time_us", i64(c.device.refractory_time_us)},
-                     {"container_interval_us", i64(c.device.container_interval_us)},
-                     {"reconnect_interval_ms", i64(c.device.reconnect_interval_ms)}});
-    } else if (section == "window") {
-      apply_section(node, name, section, {{"length_us", i64(c.window.length_us)}, {"hop_us", i64(c.window.hop_us)}});
-    } else if (section == "denoise") {
-      apply_section(node, name, section,
-                    {{"filter", str(c.denoise.filter)},
-                     {"threads",
-                      [&](const YAML::Node& n, const std::string& k) {
-                        if (scalar<std::string>(n, name, k, "a number or 'auto'") == "auto") {
-                          c.denoise.threads = 0;
-                          return;
-                        }
-                        c.denoise.threads = scalar<int>(n, name, k, "a number or 'auto'");
-                        if (c.denoise.threads < 1 || c.denoise.threads > 64)
-                          fail(name, k, fmt::format("must be 'auto' or in [1, 64], got {}", c.denoise.threads));
-                      }},
-                     {"params", [&](const YAML::Node& n, const std::string& k) {
-                        if (n.IsNull()) return;
-                        if (!n.IsMap()) fail(name, k, "expected a map of KEY: value");
-                        for (const auto& p : n) {
-                          const auto key = p.first.as<std::string>();
-                          c.denoise.params.emplace_back(key,
-                                                        scalar<std::string>(p.second, name, k + "." + key, "a value"));
-                        }
-                      }}});
-    } else if (section == "pose") {
-      apply_section(node, name, section,
-                    {{"camera", str(c.pose.camera)},
-                     {"model", str(c.pose.model)},
-                     {"prior", str(c.pose.prior)},
-                     {"poses_out", str(c.pose.poses_out)},
-                     {"ground_truth", str(c.pose.ground_truth)},
-                     {"lost_after_windows", integer(c.pose.lost_after_windows)},
-                     {"init_worker", str(c.pose.init_worker)},
-                     {"init_worker_nice", integer(c.pose.init_worker_nice)}});
-    } else if (section == "lcm") {
-      apply_section(
-          node, name, section,
-          {{"enabled", boolean(c.lcm.enabled)},
-           {"url", str(c.lcm.url)},
-           {"pose_channel", str(c.lcm.pose_channel)},
-           {"stats_channel", str(c.lcm.stats_channel)},
-           {"stats_period_ms", i64(c.lcm.stats_period_ms)},
-           {"preview", boolean(c.lcm.preview)},
-           {"preview_hz", [&](const YAML::Node& n,
-                              const std::string& k) { c.lcm.preview_hz = scalar<double>(n, name, k, "a number"); }},
-           {"preview_channel", str(c.lcm.preview_channel)}});
-    } else if (section == "pipeline") {
-      apply_section(node, name, section,
-                    {{"source_queue_packets", i64(c.pipeline.source_queue_packets)},
-                     {"source_queue_events", i64(c.pipeline.source_queue_events)},
-                     {"pose_queue_windows", i64(c.pipeline.pose_queue_windows)},
-                     {"publish_queue", i64(c.pipeline.publish_queue)}});
-    } else {
-      fail(name, section, "unknown section (known: log, source, device, window, denoise, pose, lcm, pipeline)");
-    }
-  }
+  static const char* sections[] = {"log", "source", "device", "window", "denoise", "pose", "lcm", "pipeline"};
+  std::map<std::string, int> lines;  // key path → line, for the consistency errors of validate()
   try {
-    c.validate();
-  } catch (const ConfigError& e) {
-    throw ConfigError(fmt::format("{}: {}", name, e.what()));
+    for_each_entry(
+        doc, root, "",
+        [&](const std::string& section, const std::string& /*path*/, const YAML::Node& node,
+            const YAML::Node& key_node) {
+          if (std::find_if(std::begin(sections), std::end(sections), [&](const char* s) { return section == s; }) ==
+              std::end(sections))
+            doc.fail(key_node, section,
+                     "unknown section (known: log, source, device, window, denoise, pose, lcm, pipeline)");
+          if (node.IsNull()) return;  // an empty section: its defaults
+          if (!node.IsMap())
+            doc.fail(key_node, section, fmt::format("expected a map of keys, got {}", node_kind(node)));
+          for_each_entry(doc, node, section,
+                         [&](const std::string& /*name*/, const std::string& path, const YAML::Node& value,
+                             const YAML::Node& value_key) {
+                           const Key* k = find_key(path);
+                           if (k == nullptr) {
+                             std::string known;
+                             for (const auto& other : keys())
+                               if (other.info.path.rfind(section + ".", 0) == 0)
+                                 known += (known.empty() ? "" : ", ") + other.info.path.substr(section.size() + 1);
+                             doc.fail(value_key, path,
+                                      fmt::format("unknown key (known keys in '{}': {})", section, known));
+                           }
+                           lines[path] = value_key.Mark().line + 1;
+                           set_value(doc, *k, value, value_key, c);
+                         });
+        });
+  } catch (const YAML::Exception& e) {  // a safety net: every node access above is type-checked first
+    throw ConfigError(fmt::format("{}: line {}: {}", name, e.mark.line + 1, e.msg));
+  }
+  if (const auto p = find_problem(c)) {
+    const auto it = lines.find(p->key);
+    if (it != lines.end()) throw ConfigError(fmt::format("{}: line {}: {}: {}", name, it->second, p->key, p->why));
+    throw ConfigError(fmt::format("{}: {}: {}", name, p->key, p->why));
   }
   return c;
 }
@@ -229,56 +636,7 @@ std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params(
 }
 
 void RunConfig::validate() const {
-  auto check = [](bool ok, const char* key, const std::string& why) {
-    if (!ok) throw ConfigError(fmt::format("{}: {}", key, why));
-  };
-  static const char* levels[] = {"trace", "debug", "info", "warn", "error", "critical", "off"};
-  bool level_ok = false;
-  for (const char* l : levels) level_ok = level_ok || log.level == l;
-  check(level_ok, "log.level",
-        fmt::format("'{}' is not one of trace, debug, info, warn, error, critical, off", log.level));
-  check(!source.speed || *source.speed > 0, "source.speed", "must be > 0 or 'max'");
-  check(source.batch_events >= 1 && source.batch_events <= 10'000'000, "source.batch_events",
-        fmt::format("must be in [1, 10000000], got {}", source.batch_events));
-  check(source.discontinuity_us > 0, "source.discontinuity_us", "must be > 0");
-  check(source.default_width > 0 && source.default_width <= 32768, "source.default_width", "must be in [1, 32768]");
-  check(source.default_height > 0 && source.default_height <= 32768, "source.default_height", "must be in [1, 32768]");
-  for (const auto& [key, value] : {std::pair{"device.ba_filter_time_us", device.ba_filter_time_us},
-                                   std::pair{"device.refractory_time_us", device.refractory_time_us}})
-    check(
-        value >= 0 && value <= 4095 * 250 && value % 250 == 0, key,
-        fmt::format("must be a multiple of 250 in [0, {}] (the FPGA counts 250 us steps), got {}", 4095 * 250, value));
-  check(device.container_interval_us >= 100 && device.container_interval_us <= 1'000'000,
-        "device.container_interval_us", "must be in [100, 1000000]");
-  check(device.reconnect_interval_ms >= 10, "device.reconnect_interval_ms", "must be >= 10");
-  check(window.length_us > 0, "window.length_us", fmt::format("must be > 0, got {}", window.length_us));
-  check(window.hop_us > 0 && window.hop_us <= window.length_us, "window.hop_us",
-        fmt::format("must be in [1, window.length_us = {}], got {}", window.length_us, window.hop_us));
-  check(!denoise.filter.empty(), "denoise.filter", "must name a filter or chain, or be 'none'");
-  check(denoise.threads >= 0 && denoise.threads <= 64, "denoise.threads",
-        fmt::format("must be 'auto' or in [1, 64], got {}", denoise.threads));
-  check(pose.lost_after_windows >= 1, "pose.lost_after_windows",
-        fmt::format("must be >= 1, got {}", pose.lost_after_windows));
-  check(pose.init_worker == "auto" || pose.init_worker == "on" || pose.init_worker == "off", "pose.init_worker",
-        fmt::format("must be auto, on or off, got '{}'", pose.init_worker));
-  check(pose.init_worker_nice >= 0 && pose.init_worker_nice <= 19, "pose.init_worker_nice",
-        fmt::format("must be in [0, 19], got {}", pose.init_worker_nice));
-  check(!lcm.pose_channel.empty(), "lcm.pose_channel", "must not be empty");
-  check(!lcm.stats_channel.empty(), "lcm.stats_channel", "must not be empty");
-  check(lcm.preview_hz >= 0.1 && lcm.preview_hz <= 30, "lcm.preview_hz",
-        fmt::format("must be in [0.1, 30], got {}", lcm.preview_hz));
-  check(!lcm.preview_channel.empty(), "lcm.preview_channel", "must not be empty");
-  check(lcm.stats_period_ms >= 10 && lcm.stats_period_ms <= 1000, "lcm.stats_period_ms",
-        fmt::format("must be in [10, 1000] (interfaces.md: at least once a second), got {}", lcm.stats_period_ms));
-  check(pipeline.source_queue_packets >= 2 && pipeline.source_queue_packets <= 65536, "pipeline.source_queue_packets",
-        fmt::format("must be in [2, 65536], got {}", pipeline.source_queue_packets));
-  check(pipeline.source_queue_events >= 1000 && pipeline.source_queue_events <= 100'000'000,
-        "pipeline.source_queue_events",
-        fmt::format("must be in [1000, 100000000], got {}", pipeline.source_queue_events));
-  check(pipeline.pose_queue_windows >= 1 && pipeline.pose_queue_windows <= 1024, "pipeline.pose_queue_windows",
-        fmt::format("must be in [1, 1024], got {}", pipeline.pose_queue_windows));
-  check(pipeline.publish_queue >= 1 && pipeline.publish_queue <= 65536, "pipeline.publish_queue",
-        fmt::format("must be in [1, 65536], got {}", pipeline.publish_queue));
+  if (const auto p = find_problem(*this)) throw ConfigError(fmt::format("{}: {}", p->key, p->why));
 }
 
 std::string RunConfig::to_yaml() const {

@@ -1,9 +1,14 @@
 #include "evpipe/core/slicer.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 
 namespace evpipe {
+
+namespace {
+__extension__ typedef __int128 Wide;  // NOLINT(modernize-use-using): __extension__ keeps -Wpedantic quiet
+}  // namespace
 
 std::size_t EventWindow::size() const noexcept {
   std::size_t n = 0;
@@ -26,35 +31,47 @@ TimeSlicer::TimeSlicer(Options options, Callback callback) : options_(options), 
 
 void TimeSlicer::accept(const EventBatchPtr& batch) {
   if (!batch || batch->empty()) return;
-  if (batch->discontinuity_before && !retained_.empty()) {
+  if (batch->discontinuity_before && (!retained_.empty() || grid_ended_)) {
     flush();
     retained_.clear();
     next_t0_.reset();
+    grid_ended_ = false;
     segment_start_ = true;
   }
+  if (grid_ended_) return;  // past the end of the time line: nothing more can be cut (and nothing is kept)
   if (!next_t0_) next_t0_ = batch->events.front().t_us;
   retained_.push_back(batch);
   emit_ready(batch->events.back().t_us, false);
 }
 
 void TimeSlicer::flush() {
-  if (retained_.empty() || !next_t0_) return;
+  if (retained_.empty() || !next_t0_ || grid_ended_) return;
   emit_ready(retained_.back()->events.back().t_us, true);
   retained_.clear();
 }
 
 void TimeSlicer::emit_ready(std::int64_t newest_t_us, bool final) {
+  // Times are int64 microseconds from any origin, so every sum below is computed in 128 bits: a window end or grid
+  // start past INT64_MAX (a recording stamped near the end of the time line, or a huge window) must end the grid,
+  // not wrap around (a wrapped start made this loop spin for ever).
+  constexpr Wide kMax = std::numeric_limits<std::int64_t>::max();
   const std::int64_t w = options_.window_us;
   const std::int64_t h = options_.hop_us;
-  while (next_t0_) {
+  while (next_t0_ && !grid_ended_) {
     const std::int64_t t0 = *next_t0_;
-    const std::int64_t t1 = t0 + w;
+    const auto t1 = static_cast<std::int64_t>(std::min<Wide>(Wide{t0} + w, kMax));
     // Complete once an event at or after t1 exists; at the end, any window still holding events.
     if (!final && newest_t_us < t1) break;
     if (final && newest_t_us < t0) break;
     emit_window(t0, t1);
     // Next grid start; jump over empty stretches (no event in [next, next + w)).
-    std::int64_t next = t0 + h;
+    const Wide next_wide = Wide{t0} + h;
+    if (next_wide > kMax) {
+      grid_ended_ = true;
+      retained_.clear();
+      break;
+    }
+    auto next = static_cast<std::int64_t>(next_wide);
     drop_before(next);
     if (!retained_.empty()) {
       // First retained event at or after `next`.
@@ -67,10 +84,16 @@ void TimeSlicer::emit_ready(std::int64_t newest_t_us, bool final) {
           break;
         }
       }
-      if (first_after && *first_after >= next + w) {
+      if (first_after && Wide{*first_after} >= Wide{next} + w) {
         // Smallest grid start whose window still contains first_after.
-        const std::int64_t k = (*first_after - w - t0) / h + 1;
-        next = t0 + std::max<std::int64_t>(k, 1) * h;
+        const Wide k = (Wide{*first_after} - w - t0) / h + 1;
+        const Wide jumped = Wide{t0} + std::max<Wide>(k, 1) * h;
+        if (jumped > kMax) {
+          grid_ended_ = true;
+          retained_.clear();
+          break;
+        }
+        next = static_cast<std::int64_t>(jumped);
         drop_before(next);
       }
     }

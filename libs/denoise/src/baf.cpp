@@ -11,6 +11,7 @@ constexpr std::int64_t kNever = std::numeric_limits<std::int64_t>::min() / 2;  /
 
 Baf::Baf(const SensorGeometry& geometry, BafOptions options)
     : geometry_(geometry), options_(options), stride_(geometry.width + 2) {
+  check_pixel_budget("baf", geometry, sizeof(std::int64_t));
   reset();
 }
 

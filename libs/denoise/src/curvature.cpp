@@ -431,7 +431,10 @@ struct CurvatureFilter::Impl {
   /// work one event after another or are the reference: they stay in one task).
   void set_parallelism(int tasks, TaskRunner r) {
     if (grids.empty()) return;
-    const int n = r ? std::clamp(tasks, 1, kMaxTasks) : 1;
+    // Each task has its own full-size grid: at most as many as the per-pixel budget holds (kMaxFilterStateBytes).
+    const auto grid_bytes = std::max<std::size_t>(kGridBlockBytesPerPixel * geometry.pixels(), 1);
+    const int budget_tasks = static_cast<int>(std::clamp<std::size_t>(kMaxFilterStateBytes / grid_bytes, 1, kMaxTasks));
+    const int n = r ? std::clamp(tasks, 1, std::min(kMaxTasks, budget_tasks)) : 1;
     runner = std::move(r);
     judge.set_tasks(n, sphere);
     grids.resize(static_cast<std::size_t>(n));

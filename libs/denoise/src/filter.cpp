@@ -1,8 +1,22 @@
 #include "evpipe/denoise/filter.hpp"
 
+#include <fmt/format.h>
 #include <algorithm>
+#include <stdexcept>
 
 namespace evpipe::denoise {
+
+void check_pixel_budget(std::string_view filter, const SensorGeometry& geometry, std::size_t bytes_per_pixel) {
+  if (!within_sensor_limits(geometry))
+    throw std::invalid_argument(fmt::format("{}: a {}x{} sensor is beyond the largest evpipe accepts ({}x{})", filter,
+                                            geometry.width, geometry.height, kMaxSensorSide, kMaxSensorSide));
+  const std::size_t bytes = bytes_per_pixel * geometry.pixels();
+  if (bytes > kMaxFilterStateBytes)
+    throw std::invalid_argument(fmt::format(
+        "{}: its per-pixel state for a {}x{} sensor would take {} MiB, over the "
+        "{} MiB budget of a filter ({} bytes per pixel of the largest sensor)",
+        filter, geometry.width, geometry.height, bytes >> 20, kMaxFilterStateBytes >> 20, kMaxFilterBytesPerPixel));
+}
 
 Decisions run_filter(Filter& filter, EventSpan events, std::size_t chunk_events) {
   Decisions out;

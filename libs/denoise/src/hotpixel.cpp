@@ -11,6 +11,7 @@ HotPixel::HotPixel(const SensorGeometry& geometry, HotPixelOptions options)
       stride_(geometry.width + 2),
       min_count_(
           static_cast<std::uint32_t>(std::ceil(options.min_rate_hz * static_cast<double>(options.period_us) * 1e-6))) {
+  check_pixel_budget("hotpixel", geometry, 13);  // count, hot, quiet, ratio, neighbours, ever
   const auto n = static_cast<std::size_t>(stride_ * (geometry.height + 2));
   neighbours_.assign(n, 0);
   for (int y = 0; y < geometry.height; ++y) {

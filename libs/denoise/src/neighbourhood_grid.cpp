@@ -2,6 +2,7 @@
 #include <cstring>
 #include <limits>
 
+#include "evpipe/denoise/filter.hpp"
 #include "evpipe/denoise/neighbourhood.hpp"
 
 namespace evpipe::denoise {
@@ -13,6 +14,7 @@ GridBlockIndex::GridBlockIndex(const Sphere& sphere, const SensorGeometry& geome
       sites_(sphere.size()),
       row_((sphere.size() + 1 + 15) / 16 * 16) {  // at least one zero pad (QuadricBatch::set)
   for (int s = 0; s < sites_; ++s) {
+    check_pixel_budget("curvature (grid index)", geometry, kGridBlockBytesPerPixel);
     const auto& site = sphere.sites()[static_cast<std::size_t>(s)];
     hw32_[s] = static_cast<std::int32_t>(site.half_width_us);
     offset_[s] = static_cast<std::ptrdiff_t>(site.dy) * stride_ + site.dx;
@@ -167,6 +169,7 @@ GridRingIndex::GridRingIndex(const Sphere& sphere, const SensorGeometry& geometr
     half_width_.push_back(s.half_width_us);
     offset_.push_back(static_cast<std::ptrdiff_t>(s.dy) * stride_ + s.dx);
   }
+  check_pixel_budget("curvature (causal index)", geometry, 41);  // 8 int32 slots + offset, log2, head
   reset();
 }
 

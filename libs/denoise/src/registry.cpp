@@ -90,7 +90,14 @@ std::unique_ptr<Filter> make_filter(std::string_view name,
     values[key] = value;
   }
   Params params(std::string(spec.name), std::move(values));
-  auto filter = spec.make(params, geometry);
+  check_pixel_budget(spec.name, geometry, 0);  // the sensor size; each filter checks its own per-pixel bytes
+  std::unique_ptr<Filter> filter;
+  try {
+    filter = spec.make(params, geometry);
+  } catch (const std::bad_alloc&) {
+    throw std::invalid_argument(fmt::format("{}: out of memory allocating its state for a {}x{} sensor", spec.name,
+                                            geometry.width, geometry.height));
+  }
   params.check_all_used();
   return filter;
 }

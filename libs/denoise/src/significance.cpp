@@ -68,6 +68,7 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
   for (int m = 1; m <= kNeighbours; ++m) {
     quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, options_.alpha / 2.0 / kNeighbours);
   }
+  check_pixel_budget("significance", geometry, sizeof(std::int32_t) * kRing);
   allocate();
   reset();
 }

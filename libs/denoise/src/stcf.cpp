@@ -10,6 +10,7 @@ constexpr std::int64_t kNeverPacked = std::numeric_limits<std::int64_t>::min() /
 
 Stcf::Stcf(const SensorGeometry& geometry, StcfOptions options)
     : geometry_(geometry), options_(options), stride_(geometry.width + 2 * options.radius) {
+  check_pixel_budget("stcf", geometry, sizeof(std::int64_t));
   reset();
 }
 

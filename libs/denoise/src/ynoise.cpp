@@ -16,6 +16,7 @@ constexpr std::int64_t pack(std::int64_t t_us, bool polarity) noexcept {
 
 Ynoise::Ynoise(const SensorGeometry& geometry, YnoiseOptions options)
     : geometry_(geometry), options_(options), radius_((options.window - 1) / 2), stride_(geometry.width + 2 * radius_) {
+  check_pixel_budget("ynoise", geometry, sizeof(std::int64_t));
   reset();
 }
 

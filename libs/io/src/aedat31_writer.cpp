@@ -33,8 +33,8 @@ class Aedat31Writer final : public EventWriter {
  public:
   Aedat31Writer(const std::string& path, const WriterOptions& options)
       : path_(path), options_(options), packet_events_(std::max<std::size_t>(options.packet_events, 1)) {
-    if (options_.geometry.width <= 0 || options_.geometry.height <= 0 || options_.geometry.width > 32768 ||
-        options_.geometry.height > 32768)
+    if (options_.geometry.width <= 0 || options_.geometry.height <= 0 || options_.geometry.width > kMaxSensorSide ||
+        options_.geometry.height > kMaxSensorSide)
       throw std::invalid_argument(fmt::format("{}: sensor size {}x{} cannot be written to AEDAT 3.1", path,
                                               options_.geometry.width, options_.geometry.height));
     // Bounds the packet buffer (a packet could hold INT32_MAX events).

@@ -296,7 +296,12 @@ class Aedat4Reader final : public FileReader {
       clock_.warn(kHeaderStart + 4, fmt::format("the file has {} event streams: reading stream {} only",
                                                 event_streams.size(), chosen.id));
     // Event coordinates are int16 in the file.
-    if (chosen.size_x > 0 && chosen.size_y > 0 && chosen.size_x <= 32768 && chosen.size_y <= 32768) {
+    if (chosen.size_x > kMaxSensorSide || chosen.size_y > kMaxSensorSide)
+      throw FormatError(file_, kHeaderStart + 4,
+                        fmt::format("event stream {} declares a {}x{} sensor: larger than the largest evpipe accepts "
+                                    "({}x{}, docs/operations.md \"Limits\")",
+                                    chosen.id, chosen.size_x, chosen.size_y, kMaxSensorSide, kMaxSensorSide));
+    if (chosen.size_x > 0 && chosen.size_y > 0) {
       info_.geometry = SensorGeometry{chosen.size_x, chosen.size_y};
       info_.geometry_known = true;
     } else {

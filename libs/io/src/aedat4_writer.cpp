@@ -105,8 +105,8 @@ class Aedat4Writer final : public EventWriter {
           fmt::format("{}: unknown AEDAT 4.0 compression '{}' (use lz4, zstd or none)", path, options.compression));
     }
     // Coordinates are int16 in the file.
-    if (options.geometry.width <= 0 || options.geometry.height <= 0 || options.geometry.width > 32768 ||
-        options.geometry.height > 32768)
+    if (options.geometry.width <= 0 || options.geometry.height <= 0 || options.geometry.width > kMaxSensorSide ||
+        options.geometry.height > kMaxSensorSide)
       throw std::invalid_argument(fmt::format("{}: sensor size {}x{} cannot be written to AEDAT 4.0", path,
                                               options.geometry.width, options.geometry.height));
 

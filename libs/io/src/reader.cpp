@@ -121,6 +121,11 @@ Format detect_format(std::span<const std::byte> head, std::string* why) {
 }
 
 std::unique_ptr<FileReader> open_reader(std::unique_ptr<ByteSource> source, ReaderOptions options) {
+  if (!within_sensor_limits(options.default_geometry))
+    throw FormatError(
+        source->name(), std::nullopt,
+        fmt::format("default sensor size {}x{}: each side must be in 1..{} (docs/operations.md \"Limits\")",
+                    options.default_geometry.width, options.default_geometry.height, kMaxSensorSide));
   std::array<std::byte, 4096> buf{};
   std::size_t n = 0;
   while (n < buf.size()) {

@@ -177,8 +177,10 @@ class TextReader final : public FileReader {
       for (auto [key, slot] : {std::pair{std::string_view("width="), &w}, std::pair{std::string_view("height="), &h}}) {
         if (!token.starts_with(key)) continue;
         std::int64_t v = 0;
-        if (!parse_int(token.substr(key.size()), v) || v <= 0 || v > 65536)
-          fail(offset, fmt::format("bad sensor size '{}' (expected {}N with 0 < N <= 65536)", show(token), key));
+        if (!parse_int(token.substr(key.size()), v) || v <= 0 || v > kMaxSensorSide)
+          fail(offset, fmt::format("bad sensor size '{}' (expected {}N with 0 < N <= {}, the largest sensor evpipe "
+                                   "accepts)",
+                                   show(token), key, kMaxSensorSide));
         *slot = v;
       }
     }
@@ -207,10 +209,11 @@ class TextReader final : public FileReader {
         first_non_comment = false;
         std::int64_t h = 0;
         std::int64_t w = 0;
-        if (!parse_int(tokens[0], h) || !parse_int(tokens[1], w) || h <= 0 || w <= 0 || h > 65536 || w > 65536)
-          fail(offset, fmt::format("a first line of two numbers must be the sensor size 'H W' (height width), "
-                                   "got '{}'",
-                                   show(line)));
+        if (!parse_int(tokens[0], h) || !parse_int(tokens[1], w) || h <= 0 || w <= 0 || h > kMaxSensorSide ||
+            w > kMaxSensorSide)
+          fail(offset, fmt::format("a first line of two numbers must be the sensor size 'H W' (height width, each "
+                                   "in 1..{}), got '{}'",
+                                   kMaxSensorSide, show(line)));
         const SensorGeometry g{static_cast<int>(w), static_cast<int>(h)};
         if (info_.geometry_known && g != info_.geometry)
           fail(offset, fmt::format("sensor size line 'H W' = {}x{} (width x height) contradicts the '# width= "

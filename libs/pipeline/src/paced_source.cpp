@@ -1,6 +1,7 @@
 #include "evpipe/pipeline/paced_source.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <thread>
 
@@ -47,8 +48,12 @@ EventBatchPtr PacedSource::next() {
   }
   // Chunk: events up to start_t + chunk_us (exclusive), at least one.
   auto begin = ev.begin() + static_cast<std::ptrdiff_t>(pending_pos_);
-  auto end = std::lower_bound(begin + 1, ev.end(), start_t + chunk_us_,
-                              [](const Event& e, std::int64_t t) { return e.t_us < t; });
+  // Overflow-safe sums (issue 17): times may sit anywhere on the int64 line.
+  const std::int64_t chunk_end = start_t > std::numeric_limits<std::int64_t>::max() - chunk_us_
+                                     ? std::numeric_limits<std::int64_t>::max()
+                                     : start_t + chunk_us_;
+  auto end =
+      std::lower_bound(begin + 1, ev.end(), chunk_end, [](const Event& e, std::int64_t t) { return e.t_us < t; });
   auto chunk = std::make_shared<EventBatch>();
   chunk->events.assign(begin, end);
   if (pending_->labelled()) {
@@ -58,8 +63,13 @@ EventBatchPtr PacedSource::next() {
   chunk->discontinuity_before = first_chunk && pending_->discontinuity_before;
   pending_pos_ = static_cast<std::size_t>(end - ev.begin());
 
-  const double dt_wall_us = static_cast<double>(chunk->events.back().t_us - anchor_t_us_) / speed_;
-  const auto due = anchor_wall_ + std::chrono::microseconds(static_cast<std::int64_t>(std::max(0.0, dt_wall_us)));
+  // In double (the difference of two int64 times can overflow), capped at ~31 years so that the steady clock's
+  // nanosecond count cannot overflow either (a stop() still ends the wait).
+  constexpr double kMaxWait_us = 1e15;
+  const double dt_wall_us =
+      (static_cast<double>(chunk->events.back().t_us) - static_cast<double>(anchor_t_us_)) / speed_;
+  const auto due =
+      anchor_wall_ + std::chrono::microseconds(static_cast<std::int64_t>(std::clamp(dt_wall_us, 0.0, kMaxWait_us)));
   if (!sleep_until(due)) return nullptr;
   return chunk;
 }

@@ -2,10 +2,13 @@
 // The run configuration: one typed struct per section, loaded from YAML (config/evpipe.yaml documents
 // every key), overridden by the command line, validated, and printed at start.
 //
-// Unknown keys are errors: a misspelt key in a production config must not silently fall back to a default.
-// Errors throw ConfigError naming the file and the key path (e.g. "evpipe.yaml: device.ba_filter_time_us:
-// must be in [0, 1023750]").
+// One validation layer: every key is typed, ranged and overflow-checked here, from one table (config_keys(), which
+// the tests walk key by key at its bounds and with every wrong YAML node type). Unknown and duplicate keys are errors:
+// a misspelt key in a production config must not silently fall back to a default. Errors throw ConfigError naming
+// the file, the line and the key path (e.g. "evpipe.yaml: line 7: device.ba_filter_time_us: must be a multiple of
+// 250 in [0, 1023750], got 3"); a value set on the command line is named without a line.
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
@@ -19,6 +22,45 @@ class ConfigError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// The replay pace (--speed, source.speed) is 'max' or in [kMinSpeed, kMaxSpeed]: below 0.01 a 1 s recording takes
+/// over a minute and 1e-300 would sleep for ever; above 1000 the pacing differs from 'max' by nothing measurable.
+inline constexpr double kMinSpeed = 0.01;
+inline constexpr double kMaxSpeed = 1000.0;
+/// The shortest hop between windows: at most 1000 windows per second of stream. Each window is a pose update (and a
+/// published pose), so hop_us: 1 made a 3 s replay take over a minute; 1 ms is 30 times the paper's rate.
+inline constexpr std::int64_t kMinHopUs = 1000;
+/// Each event is in at most this many windows (window.hop_us >= window.length_us / kMaxWindowOverlap): the denoise
+/// and pose work per event grows with the overlap.
+inline constexpr std::int64_t kMaxWindowOverlap = 32;
+
+/// What one key of the run configuration accepts: config_keys() lists every key (the parser, validate() and the
+/// tests use this one table).
+struct KeyInfo {
+  enum class Type {
+    string,   ///< a string of at most max_length bytes, no NUL; non_empty if it must not be ""
+    boolean,  ///< true / false
+    integer,  ///< a decimal integer in [min, max], a multiple of multiple_of
+    real,     ///< a finite number in [min_real, max_real]
+    choice,   ///< one of `choices`
+    speed,    ///< 'max' or a number in [kMinSpeed, kMaxSpeed]
+    threads,  ///< 'auto' or an integer in [min, max]
+    params,   ///< a map of KEY: scalar value (validated by the filter registry when the filter is built)
+  };
+  std::string path;  ///< "window.length_us"
+  Type type = Type::string;
+  std::int64_t min = 0;  ///< integer / threads: the inclusive range (window.hop_us: also at most window.length_us
+  std::int64_t max = 0;  ///<   and at least length_us / kMaxWindowOverlap; batch_events: at most source_queue_events)
+  std::int64_t multiple_of = 1;
+  double min_real = 0.0;  ///< real: the inclusive range
+  double max_real = 0.0;
+  std::size_t max_length = 4096;  ///< string: PATH_MAX (LCM channels: 63, LCM_MAX_CHANNEL_NAME_LENGTH)
+  bool non_empty = false;
+  std::vector<std::string> choices;
+  std::string reason;  ///< why this range (appended to range errors)
+};
+/// Every key of every section, in config/evpipe.yaml order.
+const std::vector<KeyInfo>& config_keys();
 
 struct LogConfig {
   std::string level = "info";  ///< trace | debug | info | warn | error | critical | off
@@ -115,7 +157,8 @@ struct RunConfig {
   LcmConfig lcm;
   PipelineConfig pipeline;
 
-  /// Checks ranges and consistency; throws ConfigError naming the key.
+  /// Checks every key's type range (config_keys()) and the keys' consistency (hop vs length, batch vs queue);
+  /// throws ConfigError naming the key. parse_config() runs it; run it again after command-line overrides.
   void validate() const;
   /// YAML text of the effective configuration (logged at start; loadable again).
   [[nodiscard]] std::string to_yaml() const;
@@ -130,7 +173,7 @@ inline constexpr std::uint64_t kMaxConfigBytes = 1 << 20;
 /// Parses YAML text (for tests); `name` is used in messages.
 RunConfig parse_config(const std::string& yaml_text, const std::string& name = "<config>");
 
-/// Parses a replay speed: "max" → nullopt, else a positive number. Throws ConfigError.
+/// Parses a replay speed: "max" → nullopt, else a number in [kMinSpeed, kMaxSpeed]. Throws ConfigError.
 std::optional<double> parse_speed(const std::string& text, const std::string& where);
 
 }  // namespace evpipe::config

@@ -84,6 +84,16 @@ inline void append_bounded(std::vector<Event>& held, EventSpan fresh, std::size_
   held.insert(held.end(), fresh.begin() + static_cast<std::ptrdiff_t>(drop > n_held ? drop - n_held : 0), fresh.end());
 }
 
+/// The largest sensor evpipe accepts, per side (docs/operations.md, "Limits"). The largest event sensors made are
+/// 1280 x 720 (Prophesee IMX636) and 1280 x 960 (Samsung Gen4); 2048 x 2048 leaves 3.4x their pixel count as
+/// headroom while bounding every per-pixel array (denoise::kMaxFilterBytesPerPixel) to a few hundred MB. Readers,
+/// the configuration, evsim and the camera loader refuse larger sizes instead of letting a filter try to allocate
+/// per-pixel state for 2^32 pixels.
+inline constexpr int kMaxSensorSide = 2048;
+[[nodiscard]] constexpr bool within_sensor_limits(const SensorGeometry& g) noexcept {
+  return g.width >= 1 && g.height >= 1 && g.width <= kMaxSensorSide && g.height <= kMaxSensorSide;
+}
+
 inline constexpr SensorGeometry kDavis346{346, 260};
 inline constexpr SensorGeometry kDavis240{240, 180};
 

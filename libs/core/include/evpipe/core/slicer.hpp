@@ -71,6 +71,9 @@ class TimeSlicer {
   std::deque<EventBatchPtr> retained_;
   std::optional<std::int64_t> next_t0_;
   bool segment_start_ = true;
+  /// The grid reached the end of the int64 time line (the next start would overflow): no window starts after the
+  /// last one emitted, until a discontinuity restarts the grid. Without it `t0 + hop` wrapped and the loop spun.
+  bool grid_ended_ = false;
   std::uint64_t emitted_ = 0;
 };
 

@@ -12,6 +12,7 @@
 //   f->finish(d);               // end of stream: everything pending is decided
 
 #include <concepts>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -47,6 +48,17 @@ struct ReportItem {
   std::string key;
   double value = 0.0;
 };
+
+/// The memory one filter may give its per-pixel state (docs/operations.md, "Limits"): 256 bytes per pixel of the
+/// largest accepted sensor (kMaxSensorSide^2 = 4.2 M pixels), 1 GiB. The filters need 2-60 bytes per pixel (the
+/// curvature filter's grid index about 20 per row-band task).
+inline constexpr std::size_t kMaxFilterBytesPerPixel = 256;
+inline constexpr std::size_t kMaxFilterStateBytes =
+    kMaxFilterBytesPerPixel * static_cast<std::size_t>(kMaxSensorSide) * static_cast<std::size_t>(kMaxSensorSide);
+/// Called by every filter before it allocates per-pixel state: throws std::invalid_argument naming `filter` when the
+/// sensor is beyond kMaxSensorSide or `bytes_per_pixel` x its pixels exceeds kMaxFilterStateBytes (issue 17: a
+/// declared 65536 x 65536 sensor made baf, ynoise and stcf abort on bad_alloc).
+void check_pixel_budget(std::string_view filter, const SensorGeometry& geometry, std::size_t bytes_per_pixel);
 
 class Filter {
  public:

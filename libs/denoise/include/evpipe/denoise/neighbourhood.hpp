@@ -28,6 +28,9 @@
 
 namespace evpipe::denoise {
 
+/// Per-pixel state of one GridBlockIndex: begin, count, cursor (uint32 each), stamp and stamp count (find_ties).
+inline constexpr std::size_t kGridBlockBytesPerPixel = 20;
+
 class GridBlockIndex {
  public:
   GridBlockIndex(const Sphere& sphere, const SensorGeometry& geometry);
