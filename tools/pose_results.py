@@ -58,9 +58,10 @@ MODELS = [Model("planar", "target-planar.yaml", 1), Model("roadheader", "roadhea
 DISTANCES = [0.6, 0.8, 1.0]
 NOISE_HZ = [0, 1, 3, 5]
 DURATION_MS = 3000
-# (row label, evpipe --denoise, denoise.params in the run's config or None); "raw" = no denoising. "curvature" is
-# evpipe's default (adaptive density threshold, at most the paper's 5); "curvature-paper" the paper's fixed 5.
-FILTERS = [("raw", "none", None), ("curvature", "curvature", None),
+# (row label, evpipe --denoise, denoise.params in the run's config or None); "raw" = no denoising; "significance" is
+# evpipe's default; "curvature" the paper's filter with evpipe's settings for it (adaptive density threshold, at most
+# the paper's 5); "curvature-paper" the paper's fixed 5.
+FILTERS = [("raw", "none", None), ("significance", "significance", None), ("curvature", "curvature", None),
            ("curvature-paper", "curvature", "{adaptive: false}"), ("baf", "baf", None), ("knoise", "knoise", None),
            ("ynoise", "ynoise", None)]
 QUICK_DISTANCES = [0.8]
@@ -68,7 +69,7 @@ QUICK_NOISE_HZ = [0, 5]
 QUICK_FILTERS = FILTERS[:2]
 # Figures: (model, distance, noise); one PNG per filter in FIGURE_FILTERS, like the paper's figure 13 (a)/(b).
 FIGURE_SCENES = [("planar", 0.8, 5), ("roadheader", 0.8, 5)]
-FIGURE_FILTERS = ["raw", "curvature"]
+FIGURE_FILTERS = ["raw", "significance", "curvature"]
 
 # The paper's Table 6 (mm): absolute trajectory error on its real recording (DAVIS346 + Vicon).
 PAPER_TABLE6 = {"raw": (15.392, 14.208, 15.099, 5.922), "filtered": (15.043, 14.052, 15.218, 5.374)}

@@ -39,7 +39,7 @@ SLOW_NOISE = [0, 1, 5]
 # Clutter: each distractor kind (and none, the reference) at 1 Hz/px, 3 s, with and without the prior.
 CLUTTER_KINDS = ["none", "lines", "moving-lines", "decoy", "decoy-static", "flicker"]
 CLUTTER_NOISE = 1
-NEW_FILTERS = [("raw", "none", None), ("curvature", "curvature", None)]
+NEW_FILTERS = [("raw", "none", None), ("significance", "significance", None)]  # raw and evpipe's default
 
 QUICK = {"stops": [2.0], "standstill_noise": [1], "slow_speeds": [(0.08, 12.0)], "slow_noise": [1],
          "clutter_kinds": ["none", "decoy", "flicker"], "filters": NEW_FILTERS[:1]}
