@@ -307,6 +307,7 @@ int run(const Cli& cli) {
   po.wrapped_source = tapped;
   po.window_us = cfg.window.length_us;
   po.hop_us = cfg.window.hop_us;
+  po.max_empty_span_us = cfg.window.max_empty_span_us;
   po.batch_queue_capacity = static_cast<std::size_t>(cfg.pipeline.source_queue_packets);
   po.batch_queue_events = static_cast<std::size_t>(cfg.pipeline.source_queue_events);
   po.window_queue_capacity = static_cast<std::size_t>(cfg.pipeline.pose_queue_windows);

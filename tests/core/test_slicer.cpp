@@ -196,3 +196,69 @@ TEST(TimeSlicer, JumpAcrossTheWholeTimeLine) {
   EXPECT_LE(starts[1], kMax - 1);
   EXPECT_GT(starts[1], kMax - 1 - 30'000);
 }
+
+namespace {
+
+EventBatchPtr batch_at(std::initializer_list<std::int64_t> times) {
+  auto b = std::make_shared<EventBatch>();
+  for (auto t : times) b->events.push_back({t, 1, 1, true});
+  return b;
+}
+
+struct Cut {
+  std::int64_t t0_us;
+  std::size_t events;
+};
+
+}  // namespace
+
+// A still target under a filter that keeps nothing: windows are still cut while the stream's time passes, within
+// max_empty_span_us of the newest event; a longer silence is jumped over as without the option.
+TEST(TimeSlicer, EmptyWindowsWithinTheSpanAreEmittedWhenAnEventCompletesThem) {
+  std::vector<Cut> cuts;
+  TimeSlicer s({30'000, 30'000, std::nullopt, 100'000}, [&](const EventWindow& w) {
+    cuts.push_back({w.t0_us, w.size()});
+  });
+  s.accept(batch_at({0, 10'000, 29'000}));
+  s.accept(batch_at({200'000}));
+  s.flush();
+  // [0,30) with 3; [30,60) [60,90) [90,120) empty (end <= 29 ms + 100 ms); [120,150) is not (ends at 150 > 129):
+  // the grid jumps to the window holding 200 ms, [180,210).
+  ASSERT_EQ(cuts.size(), 5U);
+  const std::int64_t t0s[] = {0, 30'000, 60'000, 90'000, 180'000};
+  const std::size_t ns[] = {3, 0, 0, 0, 1};
+  for (std::size_t i = 0; i < cuts.size(); ++i) {
+    EXPECT_EQ(cuts[i].t0_us, t0s[i]) << i;
+    EXPECT_EQ(cuts[i].events, ns[i]) << i;
+  }
+}
+
+TEST(TimeSlicer, AdvanceCompletesEmptyWindowsOnlyWithTheOption) {
+  for (const std::int64_t span : {std::int64_t{0}, std::int64_t{100'000}}) {
+    std::vector<Cut> cuts;
+    TimeSlicer s({30'000, 30'000, std::nullopt, span}, [&](const EventWindow& w) {
+      cuts.push_back({w.t0_us, w.size()});
+    });
+    s.advance(1'000'000);  // before any event: nothing to cut
+    EXPECT_TRUE(cuts.empty());
+    s.accept(batch_at({0, 29'000}));
+    s.advance(30'000);  // completes [0,30)
+    ASSERT_EQ(cuts.size(), span ? 1U : 0U) << span;
+    s.advance(100'000);     // [30,60) and [60,90) are complete and empty; [90,120) is not complete
+    s.advance(10'000'000);  // far ahead: only up to 29 ms + span
+    if (span == 0) {
+      EXPECT_TRUE(cuts.empty());
+      continue;
+    }
+    ASSERT_EQ(cuts.size(), 4U);
+    EXPECT_EQ(cuts[1].t0_us, 30'000);
+    EXPECT_EQ(cuts[2].t0_us, 60'000);
+    EXPECT_EQ(cuts[3].t0_us, 90'000);
+    EXPECT_EQ(cuts[3].events, 0U);
+    s.accept(batch_at({125'000}));  // the next event lands in [120,150): cut once complete
+    s.advance(150'000);
+    ASSERT_EQ(cuts.size(), 5U);
+    EXPECT_EQ(cuts[4].t0_us, 120'000);
+    EXPECT_EQ(cuts[4].events, 1U);
+  }
+}

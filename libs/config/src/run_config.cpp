@@ -138,6 +138,9 @@ const std::vector<Key>& keys() {
                         fmt::format("at most window.length_us and at least window.length_us / {}: at most 1000 "
                                     "windows per second and each event in at most {} windows",
                                     kMaxWindowOverlap, kMaxWindowOverlap)));
+    t.push_back(int_key("window.max_empty_span_us", &R::window, &WindowConfig::max_empty_span_us, 0, 3'600'000'000,
+                        "0 (no empty windows) to 1 h: a standstill longer than this publishes again only with the "
+                        "next kept event"));
     t.push_back(str_key("denoise.filter", &R::denoise, &DenoiseConfig::filter, true, 256));
     t.push_back(special_key("denoise.params", Type::params));
     t.push_back(special_key("denoise.threads", Type::threads, 1, 64));
@@ -667,6 +670,7 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "window" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "length_us" << YAML::Value << window.length_us;
   out << YAML::Key << "hop_us" << YAML::Value << window.hop_us;
+  out << YAML::Key << "max_empty_span_us" << YAML::Value << window.max_empty_span_us;
   out << YAML::EndMap;
   out << YAML::Key << "denoise" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "filter" << YAML::Value << denoise.filter;

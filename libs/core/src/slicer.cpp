@@ -8,6 +8,7 @@ namespace evpipe {
 
 namespace {
 __extension__ typedef __int128 Wide;  // NOLINT(modernize-use-using): __extension__ keeps -Wpedantic quiet
+constexpr Wide kMaxTime = std::numeric_limits<std::int64_t>::max();
 }  // namespace
 
 std::size_t EventWindow::size() const noexcept {
@@ -37,11 +38,29 @@ void TimeSlicer::accept(const EventBatchPtr& batch) {
     next_t0_.reset();
     grid_ended_ = false;
     segment_start_ = true;
+    last_windowed_t_.reset();
   }
   if (grid_ended_) return;  // past the end of the time line: nothing more can be cut (and nothing is kept)
   if (!next_t0_) next_t0_ = batch->events.front().t_us;
   retained_.push_back(batch);
   emit_ready(batch->events.back().t_us, false);
+}
+
+bool TimeSlicer::allow_empty(std::int64_t t1) const noexcept {
+  return options_.max_empty_span_us > 0 && last_windowed_t_ &&
+         Wide{t1} <= Wide{*last_windowed_t_} + options_.max_empty_span_us;
+}
+
+void TimeSlicer::advance(std::int64_t t_us) {
+  if (options_.max_empty_span_us <= 0 || !next_t0_ || grid_ended_) return;
+  // Time alone completes the windows holding the events retained and the empty ones within the span after the
+  // newest event; later windows wait for an event (the cap also bounds this call's work).
+  std::optional<std::int64_t> base = last_windowed_t_;
+  if (!retained_.empty())
+    base = std::max(base.value_or(retained_.back()->events.back().t_us), retained_.back()->events.back().t_us);
+  if (!base) return;
+  const Wide cap = Wide{*base} + std::max(options_.max_empty_span_us, options_.window_us);
+  emit_ready(static_cast<std::int64_t>(std::min<Wide>(Wide{t_us}, std::min<Wide>(cap, kMaxTime))), false);
 }
 
 void TimeSlicer::flush() {
@@ -54,7 +73,7 @@ void TimeSlicer::emit_ready(std::int64_t newest_t_us, bool final) {
   // Times are int64 microseconds from any origin, so every sum below is computed in 128 bits: a window end or grid
   // start past INT64_MAX (a recording stamped near the end of the time line, or a huge window) must end the grid,
   // not wrap around (a wrapped start made this loop spin for ever).
-  constexpr Wide kMax = std::numeric_limits<std::int64_t>::max();
+  constexpr Wide kMax = kMaxTime;
   const std::int64_t w = options_.window_us;
   const std::int64_t h = options_.hop_us;
   while (next_t0_ && !grid_ended_) {
@@ -84,7 +103,9 @@ void TimeSlicer::emit_ready(std::int64_t newest_t_us, bool final) {
           break;
         }
       }
-      if (first_after && Wide{*first_after} >= Wide{next} + w) {
+      // ... unless empty windows are wanted there (within max_empty_span_us of the newest event windowed).
+      if (first_after && Wide{*first_after} >= Wide{next} + w &&
+          !allow_empty(static_cast<std::int64_t>(std::min<Wide>(Wide{next} + w, kMax)))) {
         // Smallest grid start whose window still contains first_after.
         const Wide k = (Wide{*first_after} - w - t0) / h + 1;
         const Wide jumped = Wide{t0} + std::max<Wide>(k, 1) * h;
@@ -114,7 +135,8 @@ void TimeSlicer::emit_window(std::int64_t t0, std::int64_t t1) {
       win.owners.push_back(b);
     }
   }
-  if (win.parts.empty()) return;
+  if (win.parts.empty() && !allow_empty(t1)) return;
+  if (!win.parts.empty()) last_windowed_t_ = win.parts.back().back().t_us;
   win.starts_segment = segment_start_;
   segment_start_ = false;
   ++emitted_;

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -84,10 +85,17 @@ void FilteredStream::push(EventBatchPtr in, std::vector<EventBatch>& out) {
   }
   events_in_ += in->size();
   pending_events_ += in->size();
+  newest_in_t_us_ = in->events.back().t_us;
   const EventSpan events = in->span();
   pending_.push_back(std::move(in));
   filter_.push(events, decisions_);
   collect(out);
+}
+
+std::optional<std::int64_t> FilteredStream::decided_until_us() const noexcept {
+  if (pending_events_ > 0 && !pending_.empty()) return pending_.front()->events[front_decided_].t_us;
+  if (!newest_in_t_us_ || *newest_in_t_us_ == std::numeric_limits<std::int64_t>::max()) return newest_in_t_us_;
+  return *newest_in_t_us_ + 1;
 }
 
 void FilteredStream::finish(std::vector<EventBatch>& out) {

@@ -69,7 +69,8 @@ class ReadTimes {
   }
 
   Clock::time_point lookup(const EventWindow& w, bool first_window) {
-    const std::int64_t newest_t = w.parts.back().back().t_us;
+    // An empty window (nothing kept) was completed by time: the batch that brought its end.
+    const std::int64_t newest_t = w.empty() ? w.t1_us - 1 : w.parts.back().back().t_us;
     if (w.starts_segment && !first_window) {
       // The window opens a new clock segment: the next segment holding its newest event.
       std::uint64_t seg = input_segment_;
@@ -117,17 +118,22 @@ class DenoiseStage final : public Stage<SourcePacket> {
       : filter_(filter),
         out_(out),
         m_(m),
-        slicer_({o.window_us, o.hop_us, std::nullopt}, [this](const EventWindow& w) { emit(w); }) {
+        slicer_({o.window_us, o.hop_us, std::nullopt, o.max_empty_span_us}, [this](const EventWindow& w) { emit(w); }) {
     if (filter) stream_.emplace(*filter);
   }
 
   void step(SourcePacket&& p) override {
     bump(m_.events_in, p.batch->size());
     read_times_.note(p);
+    // FilteredStream flags its next kept batch after a discontinuity within the stream (not before the first event).
+    if (p.batch->discontinuity_before && stream_ && stream_->events_in() > 0) new_segment_pending_ = true;
     if (stream_) {
       kept_.clear();
       stream_->push(p.batch, kept_);
       for (auto& b : kept_) accept(std::make_shared<const EventBatch>(std::move(b)));
+      // Time passes although nothing may have been kept (a still target): the windows it completes are cut (not
+      // across a clock discontinuity whose first kept event has not reached the slicer yet).
+      if (const auto until = stream_->decided_until_us(); until && !new_segment_pending_) slicer_.advance(*until);
       // The filter belongs to this thread: its figures are copied out for stats() now and then (a few short
       // strings twice a second), not read by the statistics thread.
       if (const auto now = Clock::now(); now - last_report_ >= kReportPeriod) {
@@ -144,6 +150,7 @@ class DenoiseStage final : public Stage<SourcePacket> {
       kept_.clear();
       stream_->finish(kept_);
       for (auto& b : kept_) accept(std::make_shared<const EventBatch>(std::move(b)));
+      if (const auto until = stream_->decided_until_us()) slicer_.advance(*until);
       take_report();
     }
     slicer_.flush();
@@ -158,6 +165,7 @@ class DenoiseStage final : public Stage<SourcePacket> {
 
  private:
   void accept(EventBatchPtr b) {
+    if (b->discontinuity_before) new_segment_pending_ = false;
     bump(m_.events_out, b->size());
     slicer_.accept(b);
   }
@@ -196,6 +204,7 @@ class DenoiseStage final : public Stage<SourcePacket> {
   TimeSlicer slicer_;
   std::vector<EventBatch> kept_;
   ReadTimes read_times_;
+  bool new_segment_pending_ = false;
   std::uint64_t index_ = 0;
   std::atomic<std::uint64_t> windows_{0};
 };

@@ -91,6 +91,9 @@ struct DeviceConfig {
 struct WindowConfig {
   std::int64_t length_us = 30'000;  ///< the paper's 30 ms windows
   std::int64_t hop_us = 30'000;     ///< hop between window starts (= length: fixed windows)
+  /// Windows in which the denoiser kept no event are still cut (and a pose published for them: a still target
+  /// is held, not silent) up to this long after the newest kept event; 0 = only windows holding events.
+  std::int64_t max_empty_span_us = 60'000'000;
 };
 
 struct DenoiseConfig {

@@ -7,7 +7,9 @@
 // first event (or Options::start_us); later windows start on the grid start + k * hop_us. A window is
 // emitted once an event at or after its end has been seen (input must be time-ordered), or at flush().
 // Windows with no events are not emitted (a gap of hours must not produce millions of empty windows);
-// the grid stays aligned across gaps.
+// the grid stays aligned across gaps. Exception, Options::max_empty_span_us > 0: empty windows ending at most
+// that long after the newest event are emitted too, once complete (an event at or after their end, or advance()
+// to it): a denoised stream that keeps nothing while the scene is still is still a stream of windows.
 
 #include <cstdint>
 #include <deque>
@@ -45,6 +47,8 @@ class TimeSlicer {
     std::int64_t window_us = 30'000;
     std::int64_t hop_us = 30'000;
     std::optional<std::int64_t> start_us;  ///< grid origin; default: first event
+    /// Empty windows that end at most this long after the newest event are emitted (0: none, the default).
+    std::int64_t max_empty_span_us = 0;
   };
   using Callback = std::function<void(const EventWindow&)>;
 
@@ -53,6 +57,9 @@ class TimeSlicer {
 
   /// Adds a time-ordered batch and emits every window that it completes.
   void accept(const EventBatchPtr& batch);
+  /// No event before t_us will be accepted any more (a watermark: e.g. the filtered stream's decided time): with
+  /// max_empty_span_us > 0 emits the empty windows that this completes; without it, nothing.
+  void advance(std::int64_t t_us);
   /// End of stream (or before a discontinuity): emits the remaining windows that hold events.
   void flush();
 
@@ -63,7 +70,9 @@ class TimeSlicer {
 
  private:
   void emit_ready(std::int64_t newest_t_us, bool final);
+  /// Emits [t0, t1) when it holds events, or when it is empty and allow_empty(t1).
   void emit_window(std::int64_t t0, std::int64_t t1);
+  [[nodiscard]] bool allow_empty(std::int64_t t1) const noexcept;
   void drop_before(std::int64_t t_us);
 
   Options options_;
@@ -75,6 +84,7 @@ class TimeSlicer {
   /// last one emitted, until a discontinuity restarts the grid. Without it `t0 + hop` wrapped and the loop spun.
   bool grid_ended_ = false;
   std::uint64_t emitted_ = 0;
+  std::optional<std::int64_t> last_windowed_t_;  ///< newest event of the windows emitted so far (this segment)
 };
 
 }  // namespace evpipe

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -69,6 +70,9 @@ class FilteredStream {
   [[nodiscard]] std::uint64_t events_kept() const noexcept { return events_kept_; }
   /// Events waiting for a decision (bounded by the filter's look-ahead).
   [[nodiscard]] std::size_t pending() const noexcept { return pending_events_; }
+  /// The time below which no kept event can come out any more: the oldest pending event's time, or one past the
+  /// newest event pushed when nothing is pending (nullopt before the first event). A slicer's watermark.
+  [[nodiscard]] std::optional<std::int64_t> decided_until_us() const noexcept;
 
  private:
   void collect(std::vector<EventBatch>& out);
@@ -84,6 +88,7 @@ class FilteredStream {
   bool flag_next_ = false;  // the next non-empty output batch starts after a discontinuity
   std::uint64_t events_in_ = 0;
   std::uint64_t events_kept_ = 0;
+  std::optional<std::int64_t> newest_in_t_us_;  // newest event pushed
 };
 
 }  // namespace evpipe::denoise

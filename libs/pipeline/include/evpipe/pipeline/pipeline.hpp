@@ -142,8 +142,11 @@ enum class Mode : std::uint8_t { replay, live };
 
 struct PipelineOptions {
   Mode mode = Mode::replay;
-  std::int64_t window_us = 30'000;        ///< window length (config window.length_us)
-  std::int64_t hop_us = 30'000;           ///< hop between window starts (config window.hop_us)
+  std::int64_t window_us = 30'000;  ///< window length (config window.length_us)
+  std::int64_t hop_us = 30'000;     ///< hop between window starts (config window.hop_us)
+  /// Empty windows (the filter kept nothing) are cut up to this long after the newest kept event, on the time the
+  /// filter has decided (config window.max_empty_span_us; 0 = only windows holding events).
+  std::int64_t max_empty_span_us = 0;
   std::size_t batch_queue_capacity = 64;  ///< source -> denoise (libcaer's default ring size)
   /// source -> denoise: also at most this many events queued (0 = no bound). A live packet's size follows the
   /// event rate, so the packet count alone does not bound the queue's memory (NamedQueue::set_weight_budget).
