@@ -344,7 +344,7 @@ int run(const Cli& cli) {
     vo.video_fps = cli.video_fps;
     vo.png_every = cli.png_every;
     vo.png_dir = cli.png_dir;
-    vo.lossless = !live;  // a replay's video / stills have every window
+    vo.lossless = !live && (!cli.video.empty() || cli.png_every > 0);  // a replay's video / stills: every window
     std::optional<camera::CameraModel> cam;
     std::optional<camera::LineModel> model;
     if (pose_stage) {  // loaded once more for the drawing (create() has checked them)
