@@ -247,7 +247,8 @@ TEST(EvpipeDefaults, AdaptiveThresholdKeepsTheSampleTracked) {
   EXPECT_GT(std::stoi(json_field(adaptive.out, "adaptive_periods")), 20);  // 3 s in 100 ms periods
   EXPECT_NEAR(std::stod(json_field(adaptive.out, "noise_rate_hz")), 1.0, 0.3);
   EXPECT_LE(std::stoi(json_field(adaptive.out, "density_threshold_used")), 4);
-  EXPECT_GE(std::stoi(json_field(adaptive.out, "pose_updates")), 95);  // measured 100
+  // measured 88 of 100 since verification needs a majority of the moving segments supported (97-100 before)
+  EXPECT_GE(std::stoi(json_field(adaptive.out, "pose_updates")), 80);
   EXPECT_LT(std::stod(json_field(adaptive.out, "ate_rmse_mm")), 5.0);  // measured 2.1
   // `adaptive: false` is the paper's fixed 5, as evdenoise runs it.
   EXPECT_EQ(json_field(paper.out, "adaptive_periods"), "0");
