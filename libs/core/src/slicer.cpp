@@ -55,9 +55,9 @@ void TimeSlicer::advance(std::int64_t t_us) {
   if (options_.max_empty_span_us <= 0 || !next_t0_ || grid_ended_) return;
   // Time alone completes the windows holding the events retained and the empty ones within the span after the
   // newest event; later windows wait for an event (the cap also bounds this call's work).
-  std::optional<std::int64_t> base = last_windowed_t_;
-  if (!retained_.empty())
-    base = std::max(base.value_or(retained_.back()->events.back().t_us), retained_.back()->events.back().t_us);
+  // The newest event seen: the last retained one, or the newest windowed when nothing is retained any more.
+  const std::optional<std::int64_t> base =
+      retained_.empty() ? last_windowed_t_ : std::optional(retained_.back()->events.back().t_us);
   if (!base) return;
   const Wide cap = Wide{*base} + std::max(options_.max_empty_span_us, options_.window_us);
   emit_ready(static_cast<std::int64_t>(std::min<Wide>(Wide{t_us}, std::min<Wide>(cap, kMaxTime))), false);
