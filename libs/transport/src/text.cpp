@@ -5,7 +5,10 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstddef>
 #include <iterator>
+#include <string>
+#include <type_traits>
 
 namespace evpipe::transport {
 
@@ -32,59 +35,84 @@ const char* boolean(bool b) {
   return b ? "true" : "false";
 }
 
+void put_key(std::string& out, std::string_view name) {
+  out += ",\"";
+  out += name;
+  out += "\":";
+}
+
+// A record member as JSON, by its type (wire_field.hpp).
+template <typename T>
+void put_value(std::string& out, const T& v) {
+  if constexpr (std::is_same_v<T, bool>) {
+    out += boolean(v);
+  } else if constexpr (std::is_same_v<T, std::string>) {
+    put_str(out, v);
+  } else if constexpr (std::is_same_v<T, TrackStatus>) {
+    put_str(out, to_string(v));
+  } else if constexpr (std::is_floating_point_v<T>) {
+    put_num(out, v);
+  } else if constexpr (std::is_integral_v<T>) {
+    put_int(out, v);
+  } else {
+    static_assert(kIsStdArray<T>, "no JSON rendering for this member type");
+    out += '[';
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i) out += ',';
+      put_value(out, v[i]);
+    }
+    out += ']';
+  }
+}
+
+template <typename Record, typename Message, typename R, typename W>
+void put_field(std::string& out, const WireField<Record, Message, R, W>& f, const Record& r) {
+  put_key(out, f.name);
+  put_value(out, r.*f.record);
+}
+
+// pose_t's own descriptors (records.hpp).
+void put_field(std::string& out, PosePositionField f, const PoseRecord& r) {
+  put_key(out, f.name);
+  out += '[';
+  for (int i = 0; i < 3; ++i) {
+    if (i) out += ',';
+    put_num(out, r.T_cam_model.t_cam_model_m[i]);
+  }
+  out += ']';
+}
+
+void put_field(std::string& out, PoseOrientationField f, const PoseRecord& r) {
+  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
+  put_key(out, f.name);
+  out += '[';
+  put_num(out, q.qw);
+  out += ',';
+  put_num(out, q.qx);
+  out += ',';
+  put_num(out, q.qy);
+  out += ',';
+  put_num(out, q.qz);
+  out += ']';
+}
+
+void put_field(std::string& out, PoseCovarianceField f, const PoseRecord& r) {
+  put_key(out, f.name);
+  if (r.covariance_known) {
+    put_value(out, r.covariance);
+  } else {
+    out += "null";  // rather than 36 zeros that look like certainty
+  }
+}
+
 }  // namespace
 
 std::string to_json(const PoseRecord& r, std::string_view channel) {
   std::string o = "{\"channel\":";
   put_str(o, channel);
-  o += ",\"type\":\"evpipe.pose_t\",\"utime\":";
-  put_int(o, r.utime_us);
-  o += ",\"t_us\":";
-  put_int(o, r.t_us);
-  o += ",\"t_last_update_us\":";
-  put_int(o, r.t_last_update_us);
-  o += ",\"seq\":";
-  put_int(o, r.seq);
-  o += ",\"camera_frame\":";
-  put_str(o, r.camera_frame);
-  o += ",\"model_frame\":";
-  put_str(o, r.model_frame);
-  o += ",\"status\":";
-  put_str(o, to_string(r.status));
-  fmt::format_to(std::back_inserter(o), ",\"pose_valid\":{},\"position_m\":[", boolean(r.pose_valid));
-  for (int i = 0; i < 3; ++i) {
-    if (i) o += ',';
-    put_num(o, r.T_cam_model.t_cam_model_m[i]);
-  }
-  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
-  o += "],\"orientation\":[";
-  put_num(o, q.qw);
-  o += ',';
-  put_num(o, q.qx);
-  o += ',';
-  put_num(o, q.qy);
-  o += ',';
-  put_num(o, q.qz);
-  fmt::format_to(std::back_inserter(o), "],\"covariance_known\":{},\"covariance\":", boolean(r.covariance_known));
-  if (r.covariance_known) {
-    o += '[';
-    for (std::size_t i = 0; i < r.covariance.size(); ++i) {
-      if (i) o += ',';
-      put_num(o, r.covariance[i]);
-    }
-    o += ']';
-  } else {
-    o += "null";
-  }
-  o += ",\"window_events\":";
-  put_int(o, r.window_events);
-  o += ",\"inliers\":";
-  put_int(o, r.inliers);
-  o += ",\"sigma_px\":";
-  put_num(o, r.sigma_px);
-  o += ",\"latency_us\":";
-  put_int(o, r.latency_us);
-  fmt::format_to(std::back_inserter(o), ",\"source_connected\":{}}}", boolean(r.source_connected));
+  o += ",\"type\":\"evpipe.pose_t\"";
+  for_each_field(kPoseFields, [&](const auto& f) { put_field(o, f, r); });
+  o += '}';
   return o;
 }
 
