@@ -1,13 +1,14 @@
-// PoseRecord's field table (records.hpp, kPoseFields) walked against pose_t.lcm and the generated pose_t: every
-// field of the .lcm file has exactly one table line of the same name; each line's value lands in the bytes of that
-// field on the wire (offsets computed from the .lcm file, so a name paired with another field's member is caught);
-// every field survives encode -> decode with distinct values; the JSON line has every name as a key, in table order.
+// The records' field tables (records.hpp) walked against the .lcm files and the generated types: every field of an
+// .lcm file has exactly one table line of the same name; each line's value lands in the bytes of that field on the
+// wire (offsets computed from the .lcm file, so a name paired with another field's member is caught); every field
+// survives encode -> decode with distinct values; the JSON line has every name as a key, in table order.
 #include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/records.hpp"
 #include "evpipe/transport/text.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <cstring>
 #include <fstream>
 #include <map>
@@ -15,6 +16,7 @@
 #include <sstream>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace evpipe::transport {
@@ -25,10 +27,10 @@ using Bytes = std::vector<std::uint8_t>;
 struct LcmField {
   std::string type;
   std::string name;
-  int count{1};  ///< fixed array size; 1 for a scalar
+  int count{1};  ///< fixed array size; 1 for a scalar, -1 for an array sized by another field
 };
 
-/// The non-const fields of the one struct in an .lcm file, in order (fixed-size arrays only).
+/// The non-const fields of the one struct in an .lcm file, in order.
 std::vector<LcmField> parse_lcm(const std::string& path) {
   std::ifstream in(path);
   EXPECT_TRUE(in) << path;
@@ -42,14 +44,17 @@ std::vector<LcmField> parse_lcm(const std::string& path) {
   EXPECT_NE(close, std::string::npos) << path;
   std::vector<LcmField> fields;
   std::istringstream body(text.substr(open + 1, close - open - 1));
-  const std::regex decl(R"(^\s*([A-Za-z_][A-Za-z0-9_]*)\s+([A-Za-z_][A-Za-z0-9_]*)\s*(\[\s*([0-9]+)\s*\])?\s*$)");
+  const std::regex decl(
+      R"(^\s*([A-Za-z_][A-Za-z0-9_]*)\s+([A-Za-z_][A-Za-z0-9_]*)\s*(\[\s*([A-Za-z0-9_]+)\s*\])?\s*$)");
   for (std::string stmt; std::getline(body, stmt, ';');) {
     if (stmt.find_first_not_of(" \t\r\n") == std::string::npos) continue;
     if (std::regex_search(stmt, std::regex(R"(^\s*const\s)"))) continue;
     std::smatch m;
     EXPECT_TRUE(std::regex_match(stmt, m, decl)) << "unexpected declaration in " << path << ": " << stmt;
     if (m.empty()) continue;
-    fields.push_back({m[1], m[2], m[4].matched ? std::stoi(m[4]) : 1});
+    const std::string dim = m[4];
+    fields.push_back(
+        {m[1], m[2], dim.empty() ? 1 : (std::isdigit(static_cast<unsigned char>(dim[0])) ? std::stoi(dim) : -1)});
   }
   return fields;
 }
@@ -68,6 +73,7 @@ std::map<std::string, Bytes> split_wire(const Bytes& bytes, const std::vector<Lc
   std::map<std::string, Bytes> out;
   std::size_t pos = 8;  // the fingerprint
   for (const LcmField& f : fields) {
+    EXPECT_GE(f.count, 1) << f.name << ": only fixed-size arrays here";
     Bytes b;
     for (int k = 0; k < f.count; ++k) {
       if (f.type == "string") {
@@ -142,23 +148,89 @@ T distinct_value(std::size_t i, bool flip) {
   }
 }
 
-std::vector<std::string> table_names() {
+/// The .lcm field names a table covers (a descriptor of a list covers its count and arrays: wire_names).
+template <typename Table>
+std::vector<std::string> wire_names(const Table& table) {
   std::vector<std::string> names;
-  for_each_field(kPoseFields, [&](const auto& f) { names.emplace_back(f.name); });
+  for_each_field(table, [&](const auto& f) {
+    if constexpr (requires { f.wire_names; }) {
+      names.insert(names.end(), f.wire_names.begin(), f.wire_names.end());
+    } else {
+      names.emplace_back(f.name);
+    }
+  });
   return names;
 }
 
-/// A record with a distinct value in every table line, and a pose, covariance and flags that are not defaults.
-PoseRecord distinct_record(bool flip) {
-  PoseRecord r;
+/// The JSON keys of a table, in order.
+template <typename Table>
+std::vector<std::string> json_keys(const Table& table) {
+  std::vector<std::string> names;
+  for_each_field(table, [&](const auto& f) { names.emplace_back(f.name); });
+  return names;
+}
+
+/// A distinct value in every table line of `table` (the plain ones, wire_field).
+template <typename Record, typename Table>
+void fill_distinct(Record& r, const Table& table, bool flip) {
   std::size_t i = 0;
-  for_each_field(kPoseFields, [&](const auto& f) {
+  for_each_field(table, [&](const auto& f) {
     if constexpr (requires { f.record; }) {
       using R = std::decay_t<decltype(r.*f.record)>;
       r.*f.record = distinct_value<R>(i, flip);
     }
     ++i;
   });
+}
+
+/// Every plain line of `table` equal in a and b.
+template <typename Record, typename Table>
+void expect_lines_equal(const Record& a, const Record& b, const Table& table, const std::string& what) {
+  for_each_field(table, [&](const auto& f) {
+    if constexpr (requires { f.record; }) {
+      EXPECT_EQ(a.*f.record, b.*f.record) << what << "." << f.name;
+    }
+  });
+}
+
+/// Each .lcm field is named by exactly one table line.
+template <typename Table>
+void expect_table_covers(const Table& table, const std::string& type) {
+  const std::vector<LcmField> lcm =
+      parse_lcm(std::string(EVPIPE_SOURCE_DIR) + "/libs/transport/lcmtypes/" + type + ".lcm");
+  ASSERT_FALSE(lcm.empty()) << type;
+  std::map<std::string, int> in_table;
+  for (const std::string& n : wire_names(table)) ++in_table[n];
+  for (const LcmField& f : lcm) {
+    EXPECT_EQ(in_table[f.name], 1) << type << "." << f.name << " (" << type << ".lcm) needs exactly one table line";
+  }
+  EXPECT_EQ(in_table.size(), lcm.size()) << "a line of the table for " << type << " names no field of its .lcm";
+}
+
+/// Each plain line of `table` writes r's value into the bytes of its own field of the encoded message.
+template <typename Record, typename Message, typename Table>
+void expect_lines_on_the_wire(const Record& r, const Message& m, const Table& table, const std::string& type) {
+  Bytes bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  ASSERT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  const std::map<std::string, Bytes> wire =
+      split_wire(bytes, parse_lcm(std::string(EVPIPE_SOURCE_DIR) + "/libs/transport/lcmtypes/" + type + ".lcm"));
+  for_each_field(table, [&](const auto& f) {
+    if constexpr (requires { f.record; }) {
+      const auto it = wire.find(std::string(f.name));
+      ASSERT_NE(it, wire.end()) << type << "." << f.name;
+      EXPECT_EQ(it->second, big_endian(r.*f.record)) << type << "." << f.name;
+    }
+  });
+}
+
+std::vector<std::string> table_names() {
+  return json_keys(kPoseFields);
+}
+
+/// A record with a distinct value in every table line, and a pose, covariance and flags that are not defaults.
+PoseRecord distinct_record(bool flip) {
+  PoseRecord r;
+  fill_distinct(r, kPoseFields, flip);
   r.covariance_known = true;  // the covariance travels only when known
   for (std::size_t k = 0; k < r.covariance.size(); ++k)
     r.covariance[k] = 1e-6 * static_cast<double>(k + (flip ? 7 : 1));
@@ -167,31 +239,35 @@ PoseRecord distinct_record(bool flip) {
   return r;
 }
 
+StatsRecord distinct_stats(bool flip) {
+  StatsRecord r;
+  fill_distinct(r, kStatsFields, flip);
+  for (int k = 0; k < 3; ++k) {
+    StageStatsRecord s;
+    fill_distinct(s, kStageStatsFields, flip != (k == 1));
+    s.name += "/" + std::to_string(k);
+    r.stages.push_back(s);
+    QueueStatsRecord q;
+    fill_distinct(q, kQueueStatsFields, flip != (k == 1));
+    q.name += "/" + std::to_string(k);
+    r.queues.push_back(q);
+    r.denoise_figures.emplace_back("figure " + std::to_string(k), 0.25 * k + (flip ? 1 : 0));
+  }
+  return r;
+}
+
 const std::string kPoseLcm = std::string(EVPIPE_SOURCE_DIR) + "/libs/transport/lcmtypes/pose_t.lcm";
 
 TEST(PoseRecordFields, EveryFieldOfPoseTLcmHasOneTableLine) {
-  const std::vector<LcmField> lcm = parse_lcm(kPoseLcm);
-  ASSERT_FALSE(lcm.empty());
-  std::map<std::string, int> in_table;
-  for (const std::string& n : table_names()) ++in_table[n];
-  for (const LcmField& f : lcm) {
-    EXPECT_EQ(in_table[f.name], 1) << "pose_t." << f.name << " (pose_t.lcm) needs exactly one line in kPoseFields";
-  }
-  EXPECT_EQ(in_table.size(), lcm.size()) << "a kPoseFields line names no field of pose_t.lcm";
+  expect_table_covers(kPoseFields, "pose_t");
 }
 
 TEST(PoseRecordFields, EachLineWritesItsOwnFieldOnTheWire) {
   const std::vector<LcmField> lcm = parse_lcm(kPoseLcm);
   for (const bool flip : {false, true}) {
     const PoseRecord r = distinct_record(flip);
+    expect_lines_on_the_wire(r, to_lcm(r), kPoseFields, "pose_t");
     const std::map<std::string, Bytes> wire = split_wire(encode(r), lcm);
-    for_each_field(kPoseFields, [&](const auto& f) {
-      if constexpr (requires { f.record; }) {
-        const auto it = wire.find(std::string(f.name));
-        ASSERT_NE(it, wire.end()) << f.name;
-        EXPECT_EQ(it->second, big_endian(r.*f.record)) << "pose_t." << f.name << " (flip " << flip << ")";
-      }
-    });
     // The descriptors of their own: position, wire quaternion (qw first), covariance.
     EXPECT_EQ(wire.at("position_m"),
               big_endian(std::array<double, 3>{r.T_cam_model.t_cam_model_m.x(), r.T_cam_model.t_cam_model_m.y(),
@@ -208,11 +284,7 @@ TEST(PoseRecordFields, EveryFieldRoundTrips) {
     const Bytes bytes = encode(in);
     const std::optional<PoseRecord> out = decode_pose(bytes.data(), bytes.size());
     ASSERT_TRUE(out);
-    for_each_field(kPoseFields, [&](const auto& f) {
-      if constexpr (requires { f.record; }) {
-        EXPECT_EQ((*out).*f.record, in.*f.record) << "pose_t." << f.name << " (flip " << flip << ")";
-      }
-    });
+    expect_lines_equal(*out, in, kPoseFields, "pose_t");
     EXPECT_EQ(out->T_cam_model.t_cam_model_m, in.T_cam_model.t_cam_model_m);
     const camera::WireQuaternion a = camera::to_wire(in.T_cam_model.q_cam_model);
     const camera::WireQuaternion b = camera::to_wire(out->T_cam_model.q_cam_model);
@@ -250,6 +322,74 @@ TEST(PoseRecordFields, StatusIsTheOneCoreEnumWithTheWireValues) {
     EXPECT_NE(to_json(r, "P").find("\"status\":\"" + std::string(to_string(s)) + "\""), std::string::npos);
   }
   EXPECT_EQ(static_cast<int>(evpipe::pose_t::STATUS_HOLDING), static_cast<int>(TrackStatus::holding));
+}
+
+TEST(StatsRecordFields, EveryFieldOfTheLcmFilesHasOneTableLine) {
+  expect_table_covers(kStatsFields, "stats_t");
+  expect_table_covers(kStageStatsFields, "stage_stats_t");
+  expect_table_covers(kQueueStatsFields, "queue_stats_t");
+}
+
+TEST(StatsRecordFields, EachLineWritesItsOwnFieldOnTheWire) {
+  for (const bool flip : {false, true}) {
+    const StatsRecord r = distinct_stats(flip);
+    const evpipe::stats_t m = to_lcm(r);
+    for_each_field(kStatsFields, [&](const auto& f) {
+      if constexpr (requires { f.record; }) {  // stats_t's own bytes: by member (its lists make offsets vary)
+        using W = std::decay_t<decltype(m.*f.wire)>;
+        EXPECT_EQ(m.*f.wire, static_cast<W>(r.*f.record)) << "stats_t." << f.name;
+      }
+    });
+    ASSERT_EQ(m.stages.size(), r.stages.size());
+    ASSERT_EQ(m.queues.size(), r.queues.size());
+    for (std::size_t k = 0; k < r.stages.size(); ++k) {
+      expect_lines_on_the_wire(r.stages[k], m.stages[k], kStageStatsFields, "stage_stats_t");
+      expect_lines_on_the_wire(r.queues[k], m.queues[k], kQueueStatsFields, "queue_stats_t");
+    }
+  }
+}
+
+TEST(StatsRecordFields, EveryFieldRoundTrips) {
+  for (const bool flip : {false, true}) {
+    const StatsRecord in = distinct_stats(flip);
+    const Bytes bytes = encode(in);
+    const std::optional<StatsRecord> out = decode_stats(bytes.data(), bytes.size());
+    ASSERT_TRUE(out);
+    expect_lines_equal(*out, in, kStatsFields, "stats_t");
+    ASSERT_EQ(out->stages.size(), in.stages.size());
+    ASSERT_EQ(out->queues.size(), in.queues.size());
+    for (std::size_t k = 0; k < in.stages.size(); ++k) {
+      expect_lines_equal(out->stages[k], in.stages[k], kStageStatsFields, "stage_stats_t");
+      expect_lines_equal(out->queues[k], in.queues[k], kQueueStatsFields, "queue_stats_t");
+    }
+    EXPECT_EQ(out->denoise_figures, in.denoise_figures);
+  }
+}
+
+TEST(StatsRecordFields, JsonHasEveryFieldInTableOrder) {
+  const std::string json = to_json(distinct_stats(false), "EVPIPE_STATS");
+  std::size_t last = 0;
+  for (const std::string& n : json_keys(kStatsFields)) {
+    const std::size_t at = json.find("\"" + n + "\":");
+    ASSERT_NE(at, std::string::npos) << n << " missing from " << json;
+    EXPECT_GT(at, last) << n << " out of table order in " << json;
+    last = at;
+  }
+  const std::pair<std::string, std::vector<std::string>> lists[] = {{"stages", json_keys(kStageStatsFields)},
+                                                                    {"queues", json_keys(kQueueStatsFields)}};
+  for (const auto& [list, keys] : lists) {
+    // The list's first object has every key of its table, in order.
+    std::size_t at = json.find("\"" + list + "\":[{\"" + keys.front() + "\":");
+    ASSERT_NE(at, std::string::npos) << list << " in " << json;
+    for (const std::string& n : keys) {
+      const std::size_t next = json.find("\"" + n + "\":", at);
+      ASSERT_NE(next, std::string::npos) << list << "." << n << " in " << json;
+      EXPECT_LT(next, json.find('}', at)) << list << "." << n << " not in the first object of " << json;
+      at = next;
+    }
+  }
+  EXPECT_NE(json.find("\"denoise_figures\":{\"figure 0\":0,\"figure 1\":0.25,\"figure 2\":0.5}}"), std::string::npos)
+      << json;
 }
 
 }  // namespace

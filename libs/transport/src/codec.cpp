@@ -141,6 +141,64 @@ std::optional<Msg> decode_msg(const void* data, std::size_t size) {
   return m;
 }
 
+// stats_t's lists (records.hpp); from_lcm(stats_t) has checked the counts against the arrays.
+template <typename Record, typename Message, typename Table>
+Message element_to_wire(const Table& table, const Record& r) {
+  Message m;
+  for_each_field(table, [&](const auto& f) { field_to_wire(f, r, m); });
+  return m;
+}
+
+template <typename Record, typename Message, typename Table>
+Record element_from_wire(const Table& table, const Message& m, std::string_view type) {
+  Record r;
+  for_each_field(table, [&](const auto& f) { field_from_wire(f, m, r, type); });
+  return r;
+}
+
+void field_to_wire(StatsStagesField /*f*/, const StatsRecord& r, evpipe::stats_t& m) {
+  m.num_stages = count_i32(r.stages.size(), "stages");
+  m.stages.reserve(r.stages.size());
+  for (const StageStatsRecord& s : r.stages) {
+    m.stages.push_back(element_to_wire<StageStatsRecord, evpipe::stage_stats_t>(kStageStatsFields, s));
+  }
+}
+
+void field_from_wire(StatsStagesField /*f*/, const evpipe::stats_t& m, StatsRecord& r, std::string_view /*type*/) {
+  for (const evpipe::stage_stats_t& w : m.stages) {
+    r.stages.push_back(element_from_wire<StageStatsRecord>(kStageStatsFields, w, "stage_stats_t"));
+  }
+}
+
+void field_to_wire(StatsQueuesField /*f*/, const StatsRecord& r, evpipe::stats_t& m) {
+  m.num_queues = count_i32(r.queues.size(), "queues");
+  m.queues.reserve(r.queues.size());
+  for (const QueueStatsRecord& q : r.queues) {
+    m.queues.push_back(element_to_wire<QueueStatsRecord, evpipe::queue_stats_t>(kQueueStatsFields, q));
+  }
+}
+
+void field_from_wire(StatsQueuesField /*f*/, const evpipe::stats_t& m, StatsRecord& r, std::string_view /*type*/) {
+  for (const evpipe::queue_stats_t& w : m.queues) {
+    r.queues.push_back(element_from_wire<QueueStatsRecord>(kQueueStatsFields, w, "queue_stats_t"));
+  }
+}
+
+void field_to_wire(StatsDenoiseFiguresField /*f*/, const StatsRecord& r, evpipe::stats_t& m) {
+  m.num_denoise_figures = count_i32(r.denoise_figures.size(), "denoise_figures");
+  for (const auto& [name, value] : r.denoise_figures) {
+    m.denoise_figure_names.push_back(name);
+    m.denoise_figures.push_back(value);
+  }
+}
+
+void field_from_wire(StatsDenoiseFiguresField /*f*/, const evpipe::stats_t& m, StatsRecord& r,
+                     std::string_view /*type*/) {
+  for (std::size_t i = 0; i < m.denoise_figures.size(); ++i) {
+    r.denoise_figures.emplace_back(m.denoise_figure_names[i], m.denoise_figures[i]);
+  }
+}
+
 }  // namespace
 
 evpipe::pose_t to_lcm(const PoseRecord& r) {
@@ -157,54 +215,7 @@ PoseRecord from_lcm(const evpipe::pose_t& m) {
 
 evpipe::stats_t to_lcm(const StatsRecord& r) {
   evpipe::stats_t m;
-  m.utime = r.utime_us;
-  m.seq = r.seq;
-  m.interval_us = r.interval_us;
-  m.t_us = r.t_us;
-  m.uptime_us = r.uptime_us;
-  m.source = r.source;
-  m.source_connected = r.source_connected;
-  m.source_reconnects = r.source_reconnects;
-  m.status = static_cast<std::int8_t>(r.status);
-  m.poses_published = r.poses_published;
-  m.publish_failures = r.publish_failures;
-  m.latency_p50_us = r.latency_p50_us;
-  m.latency_p99_us = r.latency_p99_us;
-  m.num_stages = count_i32(r.stages.size(), "stages");
-  m.stages.reserve(r.stages.size());
-  for (const StageStatsRecord& s : r.stages) {
-    evpipe::stage_stats_t w;
-    w.name = s.name;
-    w.events_in = s.events_in;
-    w.events_kept = s.events_kept;
-    w.events_dropped = s.events_dropped;
-    w.packets_in = s.packets_in;
-    w.busy_us = s.busy_us;
-    w.proc_p50_us = s.proc_p50_us;
-    w.proc_p99_us = s.proc_p99_us;
-    w.proc_max_us = s.proc_max_us;
-    m.stages.push_back(std::move(w));
-  }
-  m.num_queues = count_i32(r.queues.size(), "queues");
-  m.queues.reserve(r.queues.size());
-  for (const QueueStatsRecord& q : r.queues) {
-    evpipe::queue_stats_t w;
-    w.name = q.name;
-    w.capacity = q.capacity;
-    w.fill = q.fill;
-    w.fill_max = q.fill_max;
-    w.pushed = q.pushed;
-    w.dropped = q.dropped;
-    w.events_budget = q.events_budget;
-    w.events = q.events;
-    w.events_max = q.events_max;
-    m.queues.push_back(std::move(w));
-  }
-  m.num_denoise_figures = count_i32(r.denoise_figures.size(), "denoise_figures");
-  for (const auto& [name, value] : r.denoise_figures) {
-    m.denoise_figure_names.push_back(name);
-    m.denoise_figures.push_back(value);
-  }
+  for_each_field(kStatsFields, [&](const auto& f) { field_to_wire(f, r, m); });
   return m;
 }
 
@@ -221,30 +232,7 @@ StatsRecord from_lcm(const evpipe::stats_t& m) {
                                   m.denoise_figure_names.size(), m.denoise_figures.size()));
   }
   StatsRecord r;
-  r.utime_us = m.utime;
-  r.seq = m.seq;
-  r.interval_us = m.interval_us;
-  r.t_us = m.t_us;
-  r.uptime_us = m.uptime_us;
-  r.source = m.source;
-  r.source_connected = m.source_connected != 0;
-  r.source_reconnects = m.source_reconnects;
-  r.status = status_from_wire(m.status, "stats_t", "status");
-  r.poses_published = m.poses_published;
-  r.publish_failures = m.publish_failures;
-  r.latency_p50_us = m.latency_p50_us;
-  r.latency_p99_us = m.latency_p99_us;
-  for (const evpipe::stage_stats_t& w : m.stages) {
-    r.stages.push_back({w.name, w.events_in, w.events_kept, w.events_dropped, w.packets_in, w.busy_us, w.proc_p50_us,
-                        w.proc_p99_us, w.proc_max_us});
-  }
-  for (const evpipe::queue_stats_t& w : m.queues) {
-    r.queues.push_back(
-        {w.name, w.capacity, w.fill, w.fill_max, w.pushed, w.dropped, w.events_budget, w.events, w.events_max});
-  }
-  for (std::size_t i = 0; i < m.denoise_figures.size(); ++i) {
-    r.denoise_figures.emplace_back(m.denoise_figure_names[i], m.denoise_figures[i]);
-  }
+  for_each_field(kStatsFields, [&](const auto& f) { field_from_wire(f, m, r, "stats_t"); });
   return r;
 }
 

@@ -9,6 +9,7 @@
 #include <iterator>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 namespace evpipe::transport {
 
@@ -105,6 +106,51 @@ void put_field(std::string& out, PoseCovarianceField f, const PoseRecord& r) {
   }
 }
 
+// stats_t's lists (records.hpp).
+template <typename Table, typename Record>
+void put_object(std::string& out, const Table& table, const Record& r) {
+  std::string fields;
+  for_each_field(table, [&](const auto& f) { put_field(fields, f, r); });
+  if (fields.empty()) {
+    out += "{}";
+    return;
+  }
+  fields.front() = '{';  // the first field's ','
+  out += fields;
+  out += '}';
+}
+
+template <typename Table, typename Record>
+void put_list(std::string& out, std::string_view name, const Table& table, const std::vector<Record>& items) {
+  put_key(out, name);
+  out += '[';
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    if (i) out += ',';
+    put_object(out, table, items[i]);
+  }
+  out += ']';
+}
+
+void put_field(std::string& out, StatsStagesField f, const StatsRecord& r) {
+  put_list(out, f.name, kStageStatsFields, r.stages);
+}
+
+void put_field(std::string& out, StatsQueuesField f, const StatsRecord& r) {
+  put_list(out, f.name, kQueueStatsFields, r.queues);
+}
+
+void put_field(std::string& out, StatsDenoiseFiguresField f, const StatsRecord& r) {
+  put_key(out, f.name);
+  out += '{';
+  for (std::size_t i = 0; i < r.denoise_figures.size(); ++i) {
+    if (i) out += ',';
+    put_str(out, r.denoise_figures[i].first);
+    out += ':';
+    put_num(out, r.denoise_figures[i].second);
+  }
+  out += '}';
+}
+
 }  // namespace
 
 std::string to_json(const PoseRecord& r, std::string_view channel) {
@@ -119,64 +165,9 @@ std::string to_json(const PoseRecord& r, std::string_view channel) {
 std::string to_json(const StatsRecord& r, std::string_view channel) {
   std::string o = "{\"channel\":";
   put_str(o, channel);
-  o += ",\"type\":\"evpipe.stats_t\",\"utime\":";
-  put_int(o, r.utime_us);
-  o += ",\"seq\":";
-  put_int(o, r.seq);
-  o += ",\"interval_us\":";
-  put_int(o, r.interval_us);
-  o += ",\"t_us\":";
-  put_int(o, r.t_us);
-  o += ",\"uptime_us\":";
-  put_int(o, r.uptime_us);
-  o += ",\"source\":";
-  put_str(o, r.source);
-  fmt::format_to(std::back_inserter(o),
-                 ",\"source_connected\":{},\"source_reconnects\":{},\"status\":", boolean(r.source_connected),
-                 r.source_reconnects);
-  put_str(o, to_string(r.status));
-  fmt::format_to(std::back_inserter(o),
-                 ",\"poses_published\":{},\"publish_failures\":{},\"latency_p50_us\":", r.poses_published,
-                 r.publish_failures);
-  put_num(o, r.latency_p50_us);
-  o += ",\"latency_p99_us\":";
-  put_num(o, r.latency_p99_us);
-  o += ",\"stages\":[";
-  for (std::size_t i = 0; i < r.stages.size(); ++i) {
-    const StageStatsRecord& s = r.stages[i];
-    if (i) o += ',';
-    o += "{\"name\":";
-    put_str(o, s.name);
-    fmt::format_to(std::back_inserter(o),
-                   ",\"events_in\":{},\"events_kept\":{},\"events_dropped\":{},\"packets_in\":{},\"busy_us\":{}",
-                   s.events_in, s.events_kept, s.events_dropped, s.packets_in, s.busy_us);
-    o += ",\"proc_p50_us\":";
-    put_num(o, s.proc_p50_us);
-    o += ",\"proc_p99_us\":";
-    put_num(o, s.proc_p99_us);
-    o += ",\"proc_max_us\":";
-    put_num(o, s.proc_max_us);
-    o += '}';
-  }
-  o += "],\"queues\":[";
-  for (std::size_t i = 0; i < r.queues.size(); ++i) {
-    const QueueStatsRecord& q = r.queues[i];
-    if (i) o += ',';
-    o += "{\"name\":";
-    put_str(o, q.name);
-    fmt::format_to(std::back_inserter(o),
-                   ",\"capacity\":{},\"fill\":{},\"fill_max\":{},\"pushed\":{},\"dropped\":{},\"events_budget\":{},"
-                   "\"events\":{},\"events_max\":{}}}",
-                   q.capacity, q.fill, q.fill_max, q.pushed, q.dropped, q.events_budget, q.events, q.events_max);
-  }
-  o += "],\"denoise_figures\":{";
-  for (std::size_t i = 0; i < r.denoise_figures.size(); ++i) {
-    if (i) o += ',';
-    put_str(o, r.denoise_figures[i].first);
-    o += ':';
-    put_num(o, r.denoise_figures[i].second);
-  }
-  o += "}}";
+  o += ",\"type\":\"evpipe.stats_t\"";
+  for_each_field(kStatsFields, [&](const auto& f) { put_field(o, f, r); });
+  o += '}';
   return o;
 }
 

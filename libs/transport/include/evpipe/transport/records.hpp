@@ -1,12 +1,15 @@
 #pragma once
 // Plain records the application fills from the pipeline's results and hands to the LCM publisher. They mirror
-// the LCM types in libs/transport/lcmtypes (package evpipe), with units in the names. A record's field table
-// (kPoseFields below) says which message field each member travels in; the codec (codec.cpp) and the JSON printer
-// (text.cpp) are generated from it.
+// the LCM types in libs/transport/lcmtypes (package evpipe), with units in the names. Each record's field table
+// (kPoseFields, kStatsFields, ... below) says which message field each member travels in; the codec (codec.cpp)
+// and the JSON printer (text.cpp) are generated from the tables.
 
 #include "evpipe/camera/pose.hpp"
 #include "evpipe/core/track_status.hpp"
 #include "evpipe/pose_t.hpp"
+#include "evpipe/queue_stats_t.hpp"
+#include "evpipe/stage_stats_t.hpp"
+#include "evpipe/stats_t.hpp"
 #include "evpipe/transport/wire_field.hpp"
 
 #include <array>
@@ -68,7 +71,7 @@ struct PoseCovarianceField {  ///< covariance <-> covariance[36]; zeros (JSON nu
 /// the wire order is pose_t.lcm's. The codec (to_lcm / from_lcm, hence encode / decode_pose) and to_json are
 /// generated from this table (tests/transport/test_record_fields.cpp checks it against pose_t.lcm).
 ///
-/// Adding a field to pose_t touches three files:
+/// Adding a field to pose_t touches three code files (and its row in docs/operations.md's pose_t table):
 ///   1. libs/transport/lcmtypes/pose_t.lcm: the field, with its unit in the name or the comment (last, so that
 ///      the order of the others is kept; the type's fingerprint changes: say so in docs/operations.md);
 ///   2. this file: the PoseRecord member (defaulted) and its line below, e.g.
@@ -145,6 +148,66 @@ struct StatsRecord {
   std::vector<QueueStatsRecord> queues;
   /// The denoising filter's own figures (name, value), e.g. noise_rate_hz, density_threshold_used.
   std::vector<std::pair<std::string, double>> denoise_figures;
+};
+
+/// StageStatsRecord <-> stage_stats_t, QueueStatsRecord <-> queue_stats_t and StatsRecord <-> stats_t, as
+/// kPoseFields: one line per field of the .lcm file, in JSON order; a new scalar statistic is one line here.
+inline constexpr std::tuple kStageStatsFields{
+    wire_field("name", &StageStatsRecord::name, &evpipe::stage_stats_t::name),
+    wire_field("events_in", &StageStatsRecord::events_in, &evpipe::stage_stats_t::events_in),
+    wire_field("events_kept", &StageStatsRecord::events_kept, &evpipe::stage_stats_t::events_kept),
+    wire_field("events_dropped", &StageStatsRecord::events_dropped, &evpipe::stage_stats_t::events_dropped),
+    wire_field("packets_in", &StageStatsRecord::packets_in, &evpipe::stage_stats_t::packets_in),
+    wire_field("busy_us", &StageStatsRecord::busy_us, &evpipe::stage_stats_t::busy_us),
+    wire_field("proc_p50_us", &StageStatsRecord::proc_p50_us, &evpipe::stage_stats_t::proc_p50_us),
+    wire_field("proc_p99_us", &StageStatsRecord::proc_p99_us, &evpipe::stage_stats_t::proc_p99_us),
+    wire_field("proc_max_us", &StageStatsRecord::proc_max_us, &evpipe::stage_stats_t::proc_max_us),
+};
+
+inline constexpr std::tuple kQueueStatsFields{
+    wire_field("name", &QueueStatsRecord::name, &evpipe::queue_stats_t::name),
+    wire_field("capacity", &QueueStatsRecord::capacity, &evpipe::queue_stats_t::capacity),
+    wire_field("fill", &QueueStatsRecord::fill, &evpipe::queue_stats_t::fill),
+    wire_field("fill_max", &QueueStatsRecord::fill_max, &evpipe::queue_stats_t::fill_max),
+    wire_field("pushed", &QueueStatsRecord::pushed, &evpipe::queue_stats_t::pushed),
+    wire_field("dropped", &QueueStatsRecord::dropped, &evpipe::queue_stats_t::dropped),
+    wire_field("events_budget", &QueueStatsRecord::events_budget, &evpipe::queue_stats_t::events_budget),
+    wire_field("events", &QueueStatsRecord::events, &evpipe::queue_stats_t::events),
+    wire_field("events_max", &QueueStatsRecord::events_max, &evpipe::queue_stats_t::events_max),
+};
+
+/// stats_t's lists: a count field and its array(s) together (codec.cpp and text.cpp implement them).
+struct StatsStagesField {  ///< stages <-> num_stages + stages[] (kStageStatsFields); JSON a list of objects
+  static constexpr std::string_view name{"stages"};
+  static constexpr std::array<std::string_view, 2> wire_names{"num_stages", "stages"};
+};
+struct StatsQueuesField {  ///< queues <-> num_queues + queues[] (kQueueStatsFields); JSON a list of objects
+  static constexpr std::string_view name{"queues"};
+  static constexpr std::array<std::string_view, 2> wire_names{"num_queues", "queues"};
+};
+struct StatsDenoiseFiguresField {  ///< (name, value) pairs <-> two parallel arrays; JSON an object name: value
+  static constexpr std::string_view name{"denoise_figures"};
+  static constexpr std::array<std::string_view, 3> wire_names{"num_denoise_figures", "denoise_figure_names",
+                                                              "denoise_figures"};
+};
+
+inline constexpr std::tuple kStatsFields{
+    wire_field("utime", &StatsRecord::utime_us, &evpipe::stats_t::utime),
+    wire_field("seq", &StatsRecord::seq, &evpipe::stats_t::seq),
+    wire_field("interval_us", &StatsRecord::interval_us, &evpipe::stats_t::interval_us),
+    wire_field("t_us", &StatsRecord::t_us, &evpipe::stats_t::t_us),
+    wire_field("uptime_us", &StatsRecord::uptime_us, &evpipe::stats_t::uptime_us),
+    wire_field("source", &StatsRecord::source, &evpipe::stats_t::source),
+    wire_field("source_connected", &StatsRecord::source_connected, &evpipe::stats_t::source_connected),
+    wire_field("source_reconnects", &StatsRecord::source_reconnects, &evpipe::stats_t::source_reconnects),
+    wire_field("status", &StatsRecord::status, &evpipe::stats_t::status),
+    wire_field("poses_published", &StatsRecord::poses_published, &evpipe::stats_t::poses_published),
+    wire_field("publish_failures", &StatsRecord::publish_failures, &evpipe::stats_t::publish_failures),
+    wire_field("latency_p50_us", &StatsRecord::latency_p50_us, &evpipe::stats_t::latency_p50_us),
+    wire_field("latency_p99_us", &StatsRecord::latency_p99_us, &evpipe::stats_t::latency_p99_us),
+    StatsStagesField{},
+    StatsQueuesField{},
+    StatsDenoiseFiguresField{},
 };
 
 /// Host wall clock now, us since the Unix epoch (the utime of LCM messages).
