@@ -30,6 +30,10 @@ struct LcmField {
   int count{1};  ///< fixed array size; 1 for a scalar, -1 for an array sized by another field
 };
 
+std::string lcm_path(const std::string& type) {
+  return std::string(EVPIPE_SOURCE_DIR) + "/libs/transport/lcmtypes/" + type + ".lcm";
+}
+
 /// The non-const fields of the one struct in an .lcm file, in order.
 std::vector<LcmField> parse_lcm(const std::string& path) {
   std::ifstream in(path);
@@ -196,8 +200,7 @@ void expect_lines_equal(const Record& a, const Record& b, const Table& table, co
 /// Each .lcm field is named by exactly one table line.
 template <typename Table>
 void expect_table_covers(const Table& table, const std::string& type) {
-  const std::vector<LcmField> lcm =
-      parse_lcm(std::string(EVPIPE_SOURCE_DIR) + "/libs/transport/lcmtypes/" + type + ".lcm");
+  const std::vector<LcmField> lcm = parse_lcm(lcm_path(type));
   ASSERT_FALSE(lcm.empty()) << type;
   std::map<std::string, int> in_table;
   for (const std::string& n : wire_names(table)) ++in_table[n];
@@ -212,8 +215,7 @@ template <typename Record, typename Message, typename Table>
 void expect_lines_on_the_wire(const Record& r, const Message& m, const Table& table, const std::string& type) {
   Bytes bytes(static_cast<std::size_t>(m.getEncodedSize()));
   ASSERT_EQ(m.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
-  const std::map<std::string, Bytes> wire =
-      split_wire(bytes, parse_lcm(std::string(EVPIPE_SOURCE_DIR) + "/libs/transport/lcmtypes/" + type + ".lcm"));
+  const std::map<std::string, Bytes> wire = split_wire(bytes, parse_lcm(lcm_path(type)));
   for_each_field(table, [&](const auto& f) {
     if constexpr (requires { f.record; }) {
       const auto it = wire.find(std::string(f.name));
@@ -256,14 +258,12 @@ StatsRecord distinct_stats(bool flip) {
   return r;
 }
 
-const std::string kPoseLcm = std::string(EVPIPE_SOURCE_DIR) + "/libs/transport/lcmtypes/pose_t.lcm";
-
 TEST(PoseRecordFields, EveryFieldOfPoseTLcmHasOneTableLine) {
   expect_table_covers(kPoseFields, "pose_t");
 }
 
 TEST(PoseRecordFields, EachLineWritesItsOwnFieldOnTheWire) {
-  const std::vector<LcmField> lcm = parse_lcm(kPoseLcm);
+  const std::vector<LcmField> lcm = parse_lcm(lcm_path("pose_t"));
   for (const bool flip : {false, true}) {
     const PoseRecord r = distinct_record(flip);
     expect_lines_on_the_wire(r, to_lcm(r), kPoseFields, "pose_t");
