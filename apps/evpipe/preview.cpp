@@ -9,7 +9,6 @@
 #include "evpipe/runtime/background_task.hpp"
 #include "evpipe/view/frame.hpp"
 #include "evpipe/view/render.hpp"
-#include "evpipe/runtime/background_task.hpp"
 
 namespace evpipe::app {
 

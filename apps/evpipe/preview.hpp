@@ -37,8 +37,6 @@
 
 namespace evpipe::app {
 
-
-
 /// The source wrapper that keeps the raw batches a pending preview may still need.
 class RawTap final : public EventSource {
  public:

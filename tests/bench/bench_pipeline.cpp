@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "evpipe/denoise/registry.hpp"
-#include "evpipe/stages/pipeline.hpp"
 #include "evpipe/runtime/queue.hpp"
 #include "evpipe/runtime/spsc_ring.hpp"
+#include "evpipe/stages/pipeline.hpp"
 
 using namespace evpipe;
 using namespace evpipe::stages;

@@ -53,12 +53,16 @@ class Recorder final : public PoseSink {
     const auto& e = s.estimate;
     const auto& q = e.T_cam_model.q_cam_model;
     const auto& t = e.T_cam_model.t_cam_model_m;
-    poses.push_back({e.t_us, e.status, e.pose_valid, {t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z()},
-                     static_cast<std::int64_t>(e.inliers), e.sigma_px});
+    poses.push_back({e.t_us,
+                     e.status,
+                     e.pose_valid,
+                     {t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z()},
+                     static_cast<std::int64_t>(e.inliers),
+                     e.sigma_px});
     // The one wire mapping must not lose the status or the validity.
     const auto r = to_record(e, true);
     EXPECT_EQ(r.pose_valid, e.pose_valid);
-    EXPECT_EQ(static_cast<int>(r.status), static_cast<int>(e.status));
+    EXPECT_EQ(r.status, e.status);
   }
   void publish_stats(const PipelineStats& /*stats*/) override {}
   std::vector<Published> poses;

@@ -14,7 +14,7 @@ transport::PoseRecord to_record(const pose::PoseEstimate& e, bool connected) {
   transport::PoseRecord r;
   r.t_us = e.t_us;
   r.t_last_update_us = e.t_last_update_us;
-  r.status = static_cast<transport::TrackingStatus>(e.status);
+  r.status = e.status;
   r.pose_valid = e.pose_valid;
   r.T_cam_model = e.T_cam_model;
   r.covariance_known = e.covariance_known && e.pose_valid;
@@ -79,7 +79,7 @@ void LcmSink::publish_stats(const PipelineStats& stats) {
     r.source_reconnects = static_cast<std::int64_t>(stats.source.reconnects);
     {
       const std::lock_guard lock(mutex_);
-      r.status = static_cast<transport::TrackingStatus>(latest_status_);
+      r.status = latest_status_;
     }
     r.latency_p50_us = static_cast<double>(stats.latency_event_to_publish_ns.p50) / 1e3;
     r.latency_p99_us = static_cast<double>(stats.latency_event_to_publish_ns.p99) / 1e3;
@@ -131,9 +131,8 @@ pose::TrackStatus LcmSink::latest_status() const {
 std::string status_line(const PipelineStats& s, pose::TrackStatus status, bool pose_on) {
   std::uint64_t dropped = 0;
   for (const auto& q : s.queues) dropped += q.dropped;
-  std::string line =
-      fmt::format("source {}, {} ev in, {} kept, {} dropped packets/windows", state_name(s.source.state),
-                  s.denoise_events_in, s.denoise_events_kept, dropped);
+  std::string line = fmt::format("source {}, {} ev in, {} kept, {} dropped packets/windows", state_name(s.source.state),
+                                 s.denoise_events_in, s.denoise_events_kept, dropped);
   if (pose_on) line += fmt::format(", pose {} ({} published)", pose::to_string(status), s.poses_published);
   return line;
 }

@@ -497,13 +497,14 @@ void Pipeline::start() {
   auto on_error = [&s](const std::string& stage, const std::string& what) { s.fail(stage, what); };
   s.denoise_stage.connect(s.to_windows);
   s.pose_stage.connect(s.to_poses);
-  s.denoise_runner = std::make_unique<StageRunner<EventBatchPtr>>(s.m_denoise, s.batches, s.denoise_stage, s.cancel,
-                                                                 StageRunner<EventBatchPtr>::Hooks{[&s] {
-                                                                                                    s.windows_q.close();
-                                                                                                    s.thread_done();
-                                                                                                  },
-                                                                                                  on_error},
-                                                                 s.options.idle_wait);
+  s.denoise_runner =
+      std::make_unique<StageRunner<EventBatchPtr>>(s.m_denoise, s.batches, s.denoise_stage, s.cancel,
+                                                   StageRunner<EventBatchPtr>::Hooks{[&s] {
+                                                                                       s.windows_q.close();
+                                                                                       s.thread_done();
+                                                                                     },
+                                                                                     on_error},
+                                                   s.options.idle_wait);
   s.pose_runner = std::make_unique<StageRunner<WindowItem>>(s.m_pose, s.windows_q, s.pose_stage, s.cancel,
                                                             StageRunner<WindowItem>::Hooks{[&s] {
                                                                                              s.poses.close();

@@ -30,7 +30,8 @@ pose::PoseEstimate EventsOnlyProcessor::process(const EventWindow& window) {
 
 std::unique_ptr<PoseProcessor> PoseProcessor::create(const PoseProcessorOptions& o) {
   if (o.camera.empty() || o.model.empty())
-    throw std::invalid_argument("pose: --camera and --model (pose.camera, pose.model) are both needed to estimate poses");
+    throw std::invalid_argument(
+        "pose: --camera and --model (pose.camera, pose.model) are both needed to estimate poses");
   try {
     auto cam = camera::load_camera(o.camera);
     auto model = camera::load_line_model(o.model);
@@ -51,7 +52,7 @@ std::unique_ptr<PoseProcessor> PoseProcessor::create(const PoseProcessorOptions&
 }
 
 PoseProcessor::PoseProcessor(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv,
-                     std::string csv_path, bool init_worker, int init_worker_nice)
+                             std::string csv_path, bool init_worker, int init_worker_nice)
     : estimator_(std::move(estimator)), csv_(std::move(csv)) {
   summary_.enabled = true;
   summary_.poses_out = std::move(csv_path);

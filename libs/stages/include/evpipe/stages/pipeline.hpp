@@ -34,10 +34,10 @@
 #include "evpipe/core/source.hpp"
 #include "evpipe/core/stream_stats.hpp"
 #include "evpipe/denoise/filter.hpp"
+#include "evpipe/pose/estimator.hpp"
 #include "evpipe/runtime/histogram.hpp"
 #include "evpipe/runtime/queue.hpp"
 #include "evpipe/runtime/stage.hpp"
-#include "evpipe/pose/estimator.hpp"
 
 namespace evpipe::stages {
 

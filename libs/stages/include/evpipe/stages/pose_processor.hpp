@@ -44,9 +44,9 @@ struct PoseSummary {
 
 /// What the pose stage is made from (evpipe fills it from the run configuration's pose and window sections).
 struct PoseProcessorOptions {
-  std::string camera;  ///< calibration YAML (required)
-  std::string model;   ///< line model, YAML or DXF (required)
-  std::string prior;   ///< pose prior YAML; empty = none
+  std::string camera;     ///< calibration YAML (required)
+  std::string model;      ///< line model, YAML or DXF (required)
+  std::string prior;      ///< pose prior YAML; empty = none
   std::string poses_out;  ///< trajectory CSV of the published poses; empty = none
   /// The program's input files: poses_out must not be one of them (refused before truncating).
   std::vector<std::string> inputs;
