@@ -40,10 +40,10 @@ fi
 if [ "${EVPIPE_SKIP_TSAN:-0}" != 1 ]; then
   stamp "build (tsan preset: ThreadSanitizer, threaded tests only)"
   cmake --preset tsan >/dev/null
-  cmake --build --preset tsan -j"$jobs" --target test_pipeline
-  stamp "tests (tsan preset: pipeline queues, stage loop, task pool, graph)"
+  cmake --build --preset tsan -j"$jobs" --target test_runtime test_stages
+  stamp "tests (tsan preset: runtime queues, stage loop, task pool; the graph; the pose stage with its worker)"
   TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
-    ctest --preset tsan -j"$jobs" -R '^(PacedSource|SpscRing|NamedQueue|Histogram|StageRunner|PipelineGraph|BackgroundTask|TaskPool)\.'
+    ctest --preset tsan -j"$jobs" -R '^(PacedSource|SpscRing|NamedQueue|Histogram|StageRunner|Outlet|PipelineGraph|SequentialRunner|BackgroundTask|TaskPool)\.'
 fi
 
 if [ "${EVPIPE_SKIP_FUZZ:-0}" != 1 ]; then

@@ -37,7 +37,7 @@
 #include "evpipe/metrics/classification.hpp"
 #include "evpipe/metrics/esr.hpp"
 #include "evpipe/metrics/roc.hpp"
-#include "evpipe/pipeline/task_pool.hpp"
+#include "evpipe/runtime/task_pool.hpp"
 #include "json.hpp"
 #include "preview.hpp"
 
@@ -233,7 +233,7 @@ int run(const Options& o) {
   TimedFilter filter(as_usage([&] { return denoise::make_filter_chain(o.filter, settings, geometry); }));
   const bool scored = filter.has_score();
   // --threads: the caller's thread and threads − 1 workers (filters that cannot split ignore it).
-  pipeline::TaskPool pool(o.threads - 1, "evdenoise-");
+  runtime::TaskPool pool(o.threads - 1, "evdenoise-");
   if (o.threads > 1) filter.set_parallelism(o.threads, pool.runner());
 
   std::optional<evdenoise::Preview> preview;

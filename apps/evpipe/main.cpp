@@ -1,6 +1,7 @@
 // evpipe: DAVIS346 event stream (live over USB, or a replayed recording) → denoise (the paper's curvature filter
 // by default) → 30 ms sliding windows → pose (OPnL initialisation, MM tracking) → LCM, one thread per stage
-// (libs/pipeline, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd; a summary at the end.
+// (libs/stages on libs/runtime, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd; a summary at the
+// end.
 //
 // Exit status: 0 success (also after SIGINT/SIGTERM/SIGHUP), 1 runtime error (bad file, device, an LCM log of which
 // nothing could be written), 2 usage or configuration error (also an output that is one of the inputs, an invalid
@@ -36,31 +37,28 @@
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/metrics/trajectory.hpp"
-#include "evpipe/pipeline/paced_source.hpp"
-#include "evpipe/pipeline/pipeline.hpp"
+#include "evpipe/runtime/paced_source.hpp"
 #include "evpipe/service/logging.hpp"
 #include "evpipe/service/notify.hpp"
 #include "evpipe/service/supervisor.hpp"
+#include "evpipe/stages/lcm_sink.hpp"
+#include "evpipe/stages/pipeline.hpp"
+#include "evpipe/stages/pose_processor.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
 #include "evpipe/transport/lcm_url.hpp"
 #include "live.hpp"
-#include "pose_stage.hpp"
 #include "preview.hpp"
 #include "progress.hpp"
-#include "sink.hpp"
 #include "summary.hpp"
 
 namespace {
 
 std::atomic<bool> g_stop{false};
-// The paced replay source, so that a signal also ends its sleep (a silent stretch of a recording could
-// otherwise keep it asleep for as long as the silence lasts). Lock-free atomic stores are signal-safe.
-std::atomic<evpipe::pipeline::PacedSource*> g_paced{nullptr};
-// The running pipeline: a signal asks it to drain and stop (request_stop() only stores atomics).
-std::atomic<evpipe::pipeline::Pipeline*> g_pipeline{nullptr};
+// The running pipeline: a signal asks it to drain and stop (request_stop() only stores atomics; it also ends a paced
+// replay's sleep, which a silent stretch of a recording could otherwise make as long as the silence).
+std::atomic<evpipe::stages::Pipeline*> g_pipeline{nullptr};
 extern "C" void on_signal(int /*sig*/) {
   g_stop.store(true);
-  if (auto* p = g_paced.load()) p->stop();
   if (auto* p = g_pipeline.load()) p->request_stop();
 }
 // SIGUSR1: the main loop logs the status line (a handler may not log).
@@ -108,6 +106,31 @@ evpipe::io::ReaderOptions reader_options(const evpipe::config::SourceConfig& s) 
     if (++*count <= 20) spdlog::warn("{}", w.message());
     if (*count == 20) spdlog::warn("further reader warnings are counted in the summary, not logged");
   };
+  return o;
+}
+
+// Does cfg ask for initialisation on a worker thread (pose.init_worker, "auto" resolved)?
+bool init_on_worker(const evpipe::config::RunConfig& cfg) {
+  const std::string& w = cfg.pose.init_worker;
+  if (w == "on") return true;
+  if (w == "off") return false;
+  return !(!cfg.source.replay.empty() && !cfg.source.speed);  // auto: not for a replay at --speed max
+}
+
+// The pose stage's options from the run configuration.
+evpipe::stages::PoseProcessorOptions pose_options(const evpipe::config::RunConfig& cfg,
+                                                  const std::vector<std::string>& inputs) {
+  evpipe::stages::PoseProcessorOptions o;
+  o.camera = cfg.pose.camera;
+  o.model = cfg.pose.model;
+  o.prior = cfg.pose.prior;
+  o.poses_out = cfg.pose.poses_out;
+  o.inputs = inputs;
+  o.estimator.lost_after_windows = cfg.pose.lost_after_windows;
+  o.estimator.track.window_us = cfg.window.length_us;  // the windows the pipeline cuts (and catch-up slices)
+  o.estimator.track.step_us = cfg.window.hop_us;
+  o.init_worker = init_on_worker(cfg);
+  o.init_worker_nice = cfg.pose.init_worker_nice;
   return o;
 }
 
@@ -173,15 +196,15 @@ int run(const Cli& cli) {
 
   // The pose stage runs when a camera and a model are configured; a prior, an output CSV or ground truth
   // without them is a configuration error (create() says which is missing).
-  std::unique_ptr<app::PoseStage> pose_stage;
+  std::unique_ptr<stages::PoseProcessor> pose_stage;
   std::vector<camera::StampedPose> truth;
   const auto& pc = cfg.pose;
   if (!pc.camera.empty() || !pc.model.empty() || !pc.prior.empty() || !pc.poses_out.empty() ||
       !pc.ground_truth.empty()) {
     try {
-      pose_stage = app::PoseStage::create(cfg, inputs);
+      pose_stage = stages::PoseProcessor::create(pose_options(cfg, inputs));
       if (!pc.ground_truth.empty()) truth = camera::read_trajectory_csv(pc.ground_truth);
-    } catch (const config::ConfigError& e) {
+    } catch (const std::invalid_argument& e) {
       std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
       return 2;
     } catch (const camera::ModelError& e) {
@@ -192,14 +215,11 @@ int run(const Cli& cli) {
 
   const bool live = cfg.source.replay.empty();
   std::unique_ptr<EventSource> source;
-  pipeline::PacedSource* paced = nullptr;
   try {
     if (!live) {
       auto reader = io::open_reader(cfg.source.replay, reader_options(cfg.source));
       if (cfg.source.speed) {
-        auto p = std::make_unique<pipeline::PacedSource>(std::move(reader), *cfg.source.speed);
-        paced = p.get();
-        source = std::move(p);
+        source = std::make_unique<runtime::PacedSource>(std::move(reader), *cfg.source.speed);
       } else {
         source = std::move(reader);
       }
@@ -250,9 +270,7 @@ int run(const Cli& cli) {
     }
   }
   app::RawTap* tap = nullptr;
-  EventSource* tapped = nullptr;  // the source under the tap: the pipeline still sees the camera / pacer in it
   if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
-    tapped = source.get();
     auto t = std::make_unique<app::RawTap>(std::move(source));
     tap = t.get();
     source = std::move(t);
@@ -302,9 +320,8 @@ int run(const Cli& cli) {
   summary.denoise_filter = filter ? std::string(filter->name()) : "none";
   summary.denoise_latency_us = filter ? filter->latency_us() : 0;
 
-  pipeline::PipelineOptions po;
-  po.mode = live ? pipeline::Mode::live : pipeline::Mode::replay;
-  po.wrapped_source = tapped;
+  stages::PipelineOptions po;
+  po.mode = live ? stages::Mode::live : stages::Mode::replay;
   po.window_us = cfg.window.length_us;
   po.hop_us = cfg.window.hop_us;
   po.max_empty_span_us = cfg.window.max_empty_span_us;
@@ -317,7 +334,7 @@ int run(const Cli& cli) {
                            ? cfg.denoise.threads
                            : std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 4);
   spdlog::debug("denoise: {} thread(s)", po.denoise_threads);
-  app::AppSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
+  stages::LcmSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
   std::unique_ptr<app::PreviewWorker> preview;
   if (!cli.video.empty()) {
     // Checked again now that the poses CSV and the LCM log exist: the video must not overwrite them either (a log
@@ -358,13 +375,14 @@ int run(const Cli& cli) {
       std::fprintf(stderr, "evpipe: preview: %s\n", e.what());
       return 1;
     }
-    sink.set_preview(preview.get());
+    sink.set_observer(preview.get());
+    if (pose_stage) pose_stage->set_observer(preview.get());
     if (preview_lcm) spdlog::info("LCM preview: {} Hz on {}", cfg.lcm.preview_hz, cfg.lcm.preview_channel);
   }
-  app::PoseProcessor processor(pose_stage.get(), preview.get());
-  pipeline::Pipeline pipe(std::move(source), std::move(filter), processor, sink, po);
+  stages::EventsOnlyProcessor no_pose(preview.get());
+  stages::WindowProcessor& processor = pose_stage ? static_cast<stages::WindowProcessor&>(*pose_stage) : no_pose;
+  stages::Pipeline pipe(std::move(source), std::move(filter), processor, sink, po);
 
-  g_paced.store(paced);
   g_pipeline.store(&pipe);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
@@ -375,7 +393,7 @@ int run(const Cli& cli) {
   service::SupervisorOptions so;
   so.status = [&sink, &pose_stage]() {
     const auto st = sink.latest_stats();
-    return st ? app::status_line(*st, sink.latest_status(), pose_stage != nullptr) : std::string("starting");
+    return st ? stages::status_line(*st, sink.latest_status(), pose_stage != nullptr) : std::string("starting");
   };
   service::Supervisor supervisor(so);
   for (std::size_t i = 0; i < 4; ++i) {
@@ -393,8 +411,8 @@ int run(const Cli& cli) {
   while (!pipe.wait_for(std::chrono::milliseconds(100))) {
     if (g_status_request.exchange(false)) {
       const auto st = sink.latest_stats();
-      spdlog::info("status: {}",
-                   st ? app::status_line(*st, sink.latest_status(), pose_stage != nullptr) : std::string("starting"));
+      spdlog::info("status: {}", st ? stages::status_line(*st, sink.latest_status(), pose_stage != nullptr)
+                                    : std::string("starting"));
     }
     if (progress.active()) {
       const auto st = pipe.stats();

@@ -6,10 +6,9 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "evpipe/pipeline/background_task.hpp"
+#include "evpipe/runtime/background_task.hpp"
 #include "evpipe/view/frame.hpp"
 #include "evpipe/view/render.hpp"
-#include "sink.hpp"
 
 namespace evpipe::app {
 
@@ -38,7 +37,7 @@ bool RawTap::batches(std::int64_t t0_us, std::int64_t t1_us, std::vector<EventBa
 
 PreviewWorker::PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry geometry, std::int64_t hop_us,
                              std::optional<camera::CameraModel> camera, std::optional<camera::LineModel> model,
-                             const AppSink* sink)
+                             const stages::LcmSink* sink)
     : options_(std::move(options)),
       tap_(tap),
       geometry_(geometry),
@@ -67,7 +66,7 @@ PreviewWorker::~PreviewWorker() {
   if (thread_.joinable()) thread_.join();
 }
 
-void PreviewWorker::offer(const EventWindow& window, const pose::PoseEstimate& estimate) {
+void PreviewWorker::on_window(const EventWindow& window, const pose::PoseEstimate& estimate) {
   const std::uint64_t index = windows_offered_++;
   const bool every_window = video_ || options_.png_every > 0;
   const auto now = std::chrono::steady_clock::now();
@@ -116,7 +115,7 @@ void PreviewWorker::release_locked() {
 }
 
 void PreviewWorker::run() {
-  pipeline::lower_priority_and_name("evpipe-preview", options_.nice);
+  runtime::lower_priority_and_name("evpipe-preview", options_.nice);
   for (;;) {
     Job job;
     {
@@ -183,7 +182,7 @@ void PreviewWorker::build(const Job& job) {
   }
   // Every window is built for a video; LCM still gets at most preview_hz of them.
   const auto now = std::chrono::steady_clock::now();
-  const bool every_window = video_ || options_.png_every > 0;  // else offer() has already kept to preview_hz
+  const bool every_window = video_ || options_.png_every > 0;  // else on_window() has already kept to preview_hz
   if (publisher_ &&
       (!every_window || index == 0 || now - last_publish_ >= std::chrono::duration<double>(1.0 / options_.hz))) {
     last_publish_ = now;

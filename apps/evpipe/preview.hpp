@@ -30,12 +30,12 @@
 #include "evpipe/core/slicer.hpp"
 #include "evpipe/core/source.hpp"
 #include "evpipe/pose/estimator.hpp"
+#include "evpipe/stages/lcm_sink.hpp"
+#include "evpipe/stages/pose_processor.hpp"
 #include "evpipe/transport/preview.hpp"
 #include "evpipe/view/output.hpp"
 
 namespace evpipe::app {
-
-class AppSink;
 
 /// The source wrapper that keeps the raw batches a pending preview may still need.
 class RawTap final : public EventSource {
@@ -46,6 +46,9 @@ class RawTap final : public EventSource {
   [[nodiscard]] const SourceInfo& info() const override { return inner_->info(); }
   [[nodiscard]] const SourceStats& stats() const override { return inner_->stats(); }
   [[nodiscard]] std::optional<double> progress() const override { return inner_->progress(); }
+  [[nodiscard]] SourceConnection connection() const noexcept override { return inner_->connection(); }
+  [[nodiscard]] std::uint64_t reconnects() const noexcept override { return inner_->reconnects(); }
+  void stop() noexcept override { inner_->stop(); }
 
   /// Batches are released once every event in them is older than this (set by the preview side).
   void release_before(std::int64_t t_us) noexcept { release_before_.store(t_us, std::memory_order_relaxed); }
@@ -92,19 +95,20 @@ struct PreviewCounters {
   int video_width = 0, video_height = 0;
 };
 
-class PreviewWorker {
+class PreviewWorker final : public stages::WindowObserver, public stages::PublishObserver {
  public:
   /// camera/model: for the projected segments (absent: no segments). sink: the latest statistics (drops, p99).
   PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry geometry, std::int64_t hop_us,
-                std::optional<camera::CameraModel> camera, std::optional<camera::LineModel> model, const AppSink* sink);
-  ~PreviewWorker();
+                std::optional<camera::CameraModel> camera, std::optional<camera::LineModel> model,
+                const stages::LcmSink* sink);
+  ~PreviewWorker() override;
   PreviewWorker(const PreviewWorker&) = delete;
   PreviewWorker& operator=(const PreviewWorker&) = delete;
 
   /// Pose thread, after each window's estimate.
-  void offer(const EventWindow& window, const pose::PoseEstimate& estimate);
+  void on_window(const EventWindow& window, const pose::PoseEstimate& estimate) override;
   /// Publish thread, after a pose went out: its window -> LCM latency.
-  void note_published(std::int64_t latency_ns) noexcept {
+  void on_published(std::int64_t latency_ns) noexcept override {
     last_latency_ns_.store(latency_ns, std::memory_order_relaxed);
   }
   /// Throws std::runtime_error when --video / --png-every cannot load their output module (view::FrameOutput).
@@ -129,7 +133,7 @@ class PreviewWorker {
   std::int64_t hop_us_;
   std::optional<camera::CameraModel> camera_;
   std::optional<camera::LineModel> model_;
-  const AppSink* sink_;
+  const stages::LcmSink* sink_;
   std::unique_ptr<transport::PreviewPublisher> publisher_;
   std::unique_ptr<view::FrameOutput> output_;  ///< loaded for --video / --png-every only
   bool video_ = false;

@@ -30,7 +30,7 @@ double share(std::uint64_t part, std::uint64_t whole) {
 }
 
 // Pose updates per second of sensor time between the first and the last valid pose.
-double update_rate_hz(const PoseSummary& p) {
+double update_rate_hz(const stages::PoseSummary& p) {
   const auto span_us = p.last_valid_t_us - p.first_valid_t_us;
   return p.valid_poses > 1 && span_us > 0 ? 1e6 * static_cast<double>(p.valid_poses - 1) / static_cast<double>(span_us)
                                           : 0.0;
@@ -132,7 +132,7 @@ std::string format_text(const RunSummary& s) {
 }
 
 namespace {
-std::string pose_json(const PoseSummary& p) {
+std::string pose_json(const stages::PoseSummary& p) {
   if (!p.enabled) return ",\"pose_enabled\":false";
   return fmt::format(
       ",\"pose_enabled\":true,\"pose_windows\":{},\"pose_updates\":{},\"pose_rate_hz\":{:.3f},"

@@ -9,7 +9,7 @@
 #include "evpipe/core/source.hpp"
 #include "evpipe/core/stream_stats.hpp"
 #include "evpipe/metrics/trajectory.hpp"
-#include "pose_stage.hpp"
+#include "evpipe/stages/pose_processor.hpp"
 
 namespace evpipe::app {
 
@@ -32,7 +32,7 @@ struct RunSummary {
   bool interrupted = false;
   std::string error;  ///< non-empty when the run stopped on an error
   bool out_of_order_dropped = true;
-  PoseSummary pose;
+  stages::PoseSummary pose;
   std::vector<std::pair<std::string, std::uint64_t>> queue_drops;  ///< per queue: items dropped (live policy)
   double latency_event_ms_p50 = 0, latency_event_ms_p99 = 0;       ///< newest event read → pose published
   double latency_window_ms_p50 = 0, latency_window_ms_p99 = 0;     ///< window complete → pose published

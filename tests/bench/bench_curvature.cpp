@@ -23,7 +23,7 @@
 #include "evpipe/denoise/neighbourhood.hpp"
 #include "evpipe/denoise/sphere.hpp"
 #include "evpipe/io/reader.hpp"
-#include "evpipe/pipeline/task_pool.hpp"
+#include "evpipe/runtime/task_pool.hpp"
 #include "evpipe/sim/noise.hpp"
 #include "evpipe/sim/recording.hpp"
 #include "rotating_bars.hpp"
@@ -75,7 +75,7 @@ void BM_Curvature(benchmark::State& state, const std::vector<Event>& (*data)(), 
   d.keep.reserve(ev.size());
   d.score.reserve(ev.size());
   // threads > 1: each block's row bands on a pool (as evpipe's denoise stage runs it; wall-clock rate).
-  pipeline::TaskPool pool(threads - 1, "bench-");
+  runtime::TaskPool pool(threads - 1, "bench-");
   // One filter for all iterations, reset between them: what a long-running pipeline sees (the rank table of
   // occupancy masks, filled on first use, stays warm).
   CurvatureFilter f(o, kDavis346);

@@ -17,12 +17,13 @@
 #include <vector>
 
 #include "evpipe/denoise/registry.hpp"
-#include "evpipe/pipeline/pipeline.hpp"
-#include "evpipe/pipeline/queue.hpp"
-#include "evpipe/pipeline/spsc_ring.hpp"
+#include "evpipe/runtime/queue.hpp"
+#include "evpipe/runtime/spsc_ring.hpp"
+#include "evpipe/stages/pipeline.hpp"
 
 using namespace evpipe;
-using namespace evpipe::pipeline;
+using namespace evpipe::stages;
+using namespace evpipe::runtime;
 
 namespace {
 

@@ -7,7 +7,11 @@
 #include "lcm_net.hpp"
 
 #include <gtest/gtest.h>
+#include <lcm/eventlog.h>
+#include <sys/resource.h>
 #include <lcm/lcm-cpp.hpp>
+
+#include <csignal>
 
 #include <filesystem>
 #include <fstream>
@@ -242,6 +246,42 @@ TEST(LcmPublisher, FileLogOnAFullDiskCountsEveryFailure) {
   EXPECT_EQ(c.poses_published, 0);
   EXPECT_EQ(c.publish_failures, 6);
   EXPECT_NE(pub.last_error().find("No space left on device"), std::string::npos) << pub.last_error();
+}
+
+// A disk that fills up in the middle of an event (here: a file size limit) must not leave half an event behind: the
+// log stays readable to its end, and writing resumes once there is room again.
+TEST(LcmPublisher, FileLogKeepsWholeEventsWhenTheDiskFillsMidEvent) {
+  const fs::path dir = temp_dir("logfull");
+  const std::string path = (dir / "run.lcmlog").string();
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);  // a write past the limit fails with EFBIG instead
+  int failures = 0;
+  {
+    LcmPublisher pub("file://" + path + "?mode=w");
+    rlimit small = old;
+    small.rlim_cur = 2000;  // a few pose events, then a cut inside one
+    ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+    for (int k = 0; k < 20; ++k) failures += pub.publish_pose(pose_at(k)) ? 0 : 1;
+    ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &old), 0);
+    EXPECT_TRUE(pub.publish_pose(pose_at(100)));  // room again
+  }
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_GT(failures, 0);
+  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "r");
+  ASSERT_NE(log, nullptr);
+  int events = 0;
+  std::int64_t last_t_us = -1;
+  while (lcm_eventlog_event_t* e = lcm_eventlog_read_next_event(log)) {
+    const auto r = decode_pose(e->data, static_cast<std::size_t>(e->datalen));
+    EXPECT_TRUE(r) << "event " << events;
+    if (r) last_t_us = r->t_us;
+    ++events;
+    lcm_eventlog_free_event(e);
+  }
+  lcm_eventlog_destroy(log);
+  EXPECT_EQ(events, 20 - failures + 1);  // every event written whole, none half
+  EXPECT_EQ(last_t_us, pose_at(100).t_us);
 }
 
 TEST(LcmPublisher, FileLogThatIsAnInputOrCannotBeCreatedIsRefused) {

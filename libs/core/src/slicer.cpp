@@ -140,7 +140,7 @@ void TimeSlicer::emit_window(std::int64_t t0, std::int64_t t1) {
   win.starts_segment = segment_start_;
   segment_start_ = false;
   ++emitted_;
-  callback_(win);
+  callback_(std::move(win));
 }
 
 void TimeSlicer::drop_before(std::int64_t t_us) {

@@ -39,6 +39,7 @@ void FilteredStream::collect(std::vector<EventBatch>& out) {
     }
     for (std::size_t i = 0; i < count; ++i) {
       if (decisions_.keep[taken_ + i] == 0) continue;
+      kept.read_at = b.read_at;  // of the input batch holding the newest kept event
       kept.events.push_back(b.events[front_decided_ + i]);
       if (b.labelled()) kept.labels.push_back(b.labels[front_decided_ + i]);
     }

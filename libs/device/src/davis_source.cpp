@@ -456,6 +456,7 @@ struct DavisSource::Impl {
     pending_discontinuity = false;
     stats.events += batch.events.size();
     ++stats.batches;
+    batch.read_at = std::chrono::steady_clock::now();
     ready.push_back(std::make_shared<const EventBatch>(std::move(batch)));
     batch = EventBatch{};
   }
@@ -600,6 +601,18 @@ const SourceStats& DavisSource::stats() const {
 
 DeviceState DavisSource::state() const noexcept {
   return impl_->state;
+}
+
+SourceConnection DavisSource::connection() const noexcept {
+  switch (impl_->state) {
+    case DeviceState::connected:
+      return SourceConnection::connected;
+    case DeviceState::disconnected:
+      return SourceConnection::disconnected;
+    case DeviceState::closed:
+      break;
+  }
+  return SourceConnection::closed;
 }
 
 const DavisDeviceInfo& DavisSource::device_info() const noexcept {

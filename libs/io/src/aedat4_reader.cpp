@@ -684,6 +684,7 @@ class Aedat4Reader final : public FileReader {
   EventBatchPtr take_pending() {
     stats_.events += pending_.events.size();
     ++stats_.batches;
+    pending_.read_at = std::chrono::steady_clock::now();
     auto batch = std::make_shared<const EventBatch>(std::move(pending_));
     pending_ = EventBatch{};
     pending_.events.reserve(batch_events_);

@@ -202,6 +202,7 @@ class BatchBuilder {
     }
     stats_.events += b->events.size();
     ++stats_.batches;
+    b->read_at = std::chrono::steady_clock::now();
     return b;
   }
 

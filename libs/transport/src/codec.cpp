@@ -2,9 +2,13 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <exception>
+#include <iterator>
 #include <limits>
+#include <string_view>
+#include <type_traits>
 
 namespace evpipe::transport {
 
@@ -17,19 +21,95 @@ std::int32_t count_i32(std::size_t n, const char* field) {
   return static_cast<std::int32_t>(n);
 }
 
-TrackingStatus status_from_wire(std::int8_t v, const char* type) {
-  switch (v) {
-    case evpipe::pose_t::STATUS_INITIALISING:
-      return TrackingStatus::initialising;
-    case evpipe::pose_t::STATUS_TRACKING:
-      return TrackingStatus::tracking;
-    case evpipe::pose_t::STATUS_LOST:
-      return TrackingStatus::lost;
-    case evpipe::pose_t::STATUS_HOLDING:
-      return TrackingStatus::holding;
-    default:
-      throw DecodeError(fmt::format("{}.status: {} is not one of STATUS_INITIALISING/TRACKING/LOST/HOLDING (0/1/2/3)",
-                                    type, static_cast<int>(v)));
+// One status type (libs/core) whose values are the wire's.
+static_assert(static_cast<std::int8_t>(TrackStatus::initialising) == evpipe::pose_t::STATUS_INITIALISING);
+static_assert(static_cast<std::int8_t>(TrackStatus::tracking) == evpipe::pose_t::STATUS_TRACKING);
+static_assert(static_cast<std::int8_t>(TrackStatus::lost) == evpipe::pose_t::STATUS_LOST);
+static_assert(static_cast<std::int8_t>(TrackStatus::holding) == evpipe::pose_t::STATUS_HOLDING);
+static_assert(kTrackStatuses.size() == 4,
+              "a new TrackStatus needs its pose_t.STATUS_* constant (and the asserts here)");
+
+TrackStatus status_from_wire(std::int8_t v, std::string_view type, std::string_view field) {
+  if (const std::optional<TrackStatus> s = track_status_from_value(v)) {
+    return *s;
+  }
+  throw DecodeError(fmt::format("{}.{}: {} is not one of STATUS_INITIALISING/TRACKING/LOST/HOLDING (0/1/2/3)", type,
+                                field, static_cast<int>(v)));
+}
+
+// Table lines (wire_field.hpp): record -> message and back, by the member types.
+template <typename Record, typename Message, typename R, typename W>
+void field_to_wire(const WireField<Record, Message, R, W>& f, const Record& r, Message& m) {
+  const R& v = r.*f.record;
+  W& w = m.*f.wire;
+  if constexpr (std::is_same_v<R, TrackStatus>) {
+    w = static_cast<W>(v);
+  } else if constexpr (kIsStdArray<R>) {
+    std::copy(v.begin(), v.end(), std::begin(w));
+  } else {
+    w = v;  // bool -> int8_t: 0 / 1
+  }
+}
+
+template <typename Record, typename Message, typename R, typename W>
+void field_from_wire(const WireField<Record, Message, R, W>& f, const Message& m, Record& r, std::string_view type) {
+  const W& w = m.*f.wire;
+  R& v = r.*f.record;
+  if constexpr (std::is_same_v<R, bool>) {
+    v = w != 0;
+  } else if constexpr (std::is_same_v<R, TrackStatus>) {
+    v = status_from_wire(w, type, f.name);
+  } else if constexpr (kIsStdArray<R>) {
+    std::copy(std::begin(w), std::end(w), v.begin());
+  } else {
+    v = w;
+  }
+}
+
+// pose_t's own descriptors (records.hpp).
+void field_to_wire(PosePositionField /*f*/, const PoseRecord& r, evpipe::pose_t& m) {
+  for (int i = 0; i < 3; ++i) {
+    m.position_m[i] = r.T_cam_model.t_cam_model_m[i];
+  }
+}
+
+void field_from_wire(PosePositionField /*f*/, const evpipe::pose_t& m, PoseRecord& r, std::string_view type) {
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(m.position_m[i])) {
+      throw DecodeError(fmt::format("{}.position_m[{}]: not finite", type, i));
+    }
+    r.T_cam_model.t_cam_model_m[i] = m.position_m[i];
+  }
+}
+
+void field_to_wire(PoseOrientationField /*f*/, const PoseRecord& r, evpipe::pose_t& m) {
+  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
+  m.orientation[0] = q.qw;
+  m.orientation[1] = q.qx;
+  m.orientation[2] = q.qy;
+  m.orientation[3] = q.qz;
+}
+
+void field_from_wire(PoseOrientationField /*f*/, const evpipe::pose_t& m, PoseRecord& r, std::string_view type) {
+  try {
+    r.T_cam_model.q_cam_model =
+        camera::from_wire(m.orientation[0], m.orientation[1], m.orientation[2], m.orientation[3]);
+  } catch (const std::invalid_argument& e) {
+    throw DecodeError(fmt::format("{}.orientation (qw qx qy qz = {} {} {} {}): {}", type, m.orientation[0],
+                                  m.orientation[1], m.orientation[2], m.orientation[3], e.what()));
+  }
+}
+
+// The flag covariance_known decides (a field of its own).
+void field_to_wire(PoseCovarianceField /*f*/, const PoseRecord& r, evpipe::pose_t& m) {
+  for (std::size_t i = 0; i < 36; ++i) {
+    m.covariance[i] = r.covariance_known ? r.covariance[i] : 0.0;
+  }
+}
+
+void field_from_wire(PoseCovarianceField /*f*/, const evpipe::pose_t& m, PoseRecord& r, std::string_view /*type*/) {
+  for (std::size_t i = 0; i < 36; ++i) {
+    r.covariance[i] = m.covariance_known != 0 ? m.covariance[i] : 0.0;
   }
 }
 
@@ -61,123 +141,81 @@ std::optional<Msg> decode_msg(const void* data, std::size_t size) {
   return m;
 }
 
-}  // namespace
-
-evpipe::pose_t to_lcm(const PoseRecord& r) {
-  evpipe::pose_t m;
-  m.utime = r.utime_us;
-  m.t_us = r.t_us;
-  m.seq = r.seq;
-  m.camera_frame = r.camera_frame;
-  m.model_frame = r.model_frame;
-  m.status = static_cast<std::int8_t>(r.status);
-  m.pose_valid = r.pose_valid;
-  for (int i = 0; i < 3; ++i) {
-    m.position_m[i] = r.T_cam_model.t_cam_model_m[i];
-  }
-  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
-  m.orientation[0] = q.qw;
-  m.orientation[1] = q.qx;
-  m.orientation[2] = q.qy;
-  m.orientation[3] = q.qz;
-  m.covariance_known = r.covariance_known;
-  for (std::size_t i = 0; i < 36; ++i) {
-    m.covariance[i] = r.covariance_known ? r.covariance[i] : 0.0;
-  }
-  m.window_events = r.window_events;
-  m.inliers = r.inliers;
-  m.sigma_px = r.sigma_px;
-  m.latency_us = r.latency_us;
-  m.source_connected = r.source_connected;
-  m.t_last_update_us = r.t_last_update_us;
+// stats_t's lists (records.hpp); from_lcm(stats_t) has checked the counts against the arrays.
+template <typename Record, typename Message, typename Table>
+Message element_to_wire(const Table& table, const Record& r) {
+  Message m;
+  for_each_field(table, [&](const auto& f) { field_to_wire(f, r, m); });
   return m;
 }
 
-PoseRecord from_lcm(const evpipe::pose_t& m) {
-  PoseRecord r;
-  r.utime_us = m.utime;
-  r.t_us = m.t_us;
-  r.seq = m.seq;
-  r.camera_frame = m.camera_frame;
-  r.model_frame = m.model_frame;
-  r.status = status_from_wire(m.status, "pose_t");
-  r.pose_valid = m.pose_valid != 0;
-  for (int i = 0; i < 3; ++i) {
-    if (!std::isfinite(m.position_m[i])) {
-      throw DecodeError(fmt::format("pose_t.position_m[{}]: not finite", i));
-    }
-    r.T_cam_model.t_cam_model_m[i] = m.position_m[i];
-  }
-  try {
-    r.T_cam_model.q_cam_model =
-        camera::from_wire(m.orientation[0], m.orientation[1], m.orientation[2], m.orientation[3]);
-  } catch (const std::invalid_argument& e) {
-    throw DecodeError(fmt::format("pose_t.orientation (qw qx qy qz = {} {} {} {}): {}", m.orientation[0],
-                                  m.orientation[1], m.orientation[2], m.orientation[3], e.what()));
-  }
-  r.covariance_known = m.covariance_known != 0;
-  for (std::size_t i = 0; i < 36; ++i) {
-    r.covariance[i] = r.covariance_known ? m.covariance[i] : 0.0;
-  }
-  r.window_events = m.window_events;
-  r.inliers = m.inliers;
-  r.sigma_px = m.sigma_px;
-  r.latency_us = m.latency_us;
-  r.source_connected = m.source_connected != 0;
-  r.t_last_update_us = m.t_last_update_us;
+template <typename Record, typename Message, typename Table>
+Record element_from_wire(const Table& table, const Message& m, std::string_view type) {
+  Record r;
+  for_each_field(table, [&](const auto& f) { field_from_wire(f, m, r, type); });
   return r;
 }
 
-evpipe::stats_t to_lcm(const StatsRecord& r) {
-  evpipe::stats_t m;
-  m.utime = r.utime_us;
-  m.seq = r.seq;
-  m.interval_us = r.interval_us;
-  m.t_us = r.t_us;
-  m.uptime_us = r.uptime_us;
-  m.source = r.source;
-  m.source_connected = r.source_connected;
-  m.source_reconnects = r.source_reconnects;
-  m.status = static_cast<std::int8_t>(r.status);
-  m.poses_published = r.poses_published;
-  m.publish_failures = r.publish_failures;
-  m.latency_p50_us = r.latency_p50_us;
-  m.latency_p99_us = r.latency_p99_us;
+void field_to_wire(StatsStagesField /*f*/, const StatsRecord& r, evpipe::stats_t& m) {
   m.num_stages = count_i32(r.stages.size(), "stages");
   m.stages.reserve(r.stages.size());
   for (const StageStatsRecord& s : r.stages) {
-    evpipe::stage_stats_t w;
-    w.name = s.name;
-    w.events_in = s.events_in;
-    w.events_kept = s.events_kept;
-    w.events_dropped = s.events_dropped;
-    w.packets_in = s.packets_in;
-    w.busy_us = s.busy_us;
-    w.proc_p50_us = s.proc_p50_us;
-    w.proc_p99_us = s.proc_p99_us;
-    w.proc_max_us = s.proc_max_us;
-    m.stages.push_back(std::move(w));
+    m.stages.push_back(element_to_wire<StageStatsRecord, evpipe::stage_stats_t>(kStageStatsFields, s));
   }
+}
+
+void field_from_wire(StatsStagesField /*f*/, const evpipe::stats_t& m, StatsRecord& r, std::string_view /*type*/) {
+  for (const evpipe::stage_stats_t& w : m.stages) {
+    r.stages.push_back(element_from_wire<StageStatsRecord>(kStageStatsFields, w, "stage_stats_t"));
+  }
+}
+
+void field_to_wire(StatsQueuesField /*f*/, const StatsRecord& r, evpipe::stats_t& m) {
   m.num_queues = count_i32(r.queues.size(), "queues");
   m.queues.reserve(r.queues.size());
   for (const QueueStatsRecord& q : r.queues) {
-    evpipe::queue_stats_t w;
-    w.name = q.name;
-    w.capacity = q.capacity;
-    w.fill = q.fill;
-    w.fill_max = q.fill_max;
-    w.pushed = q.pushed;
-    w.dropped = q.dropped;
-    w.events_budget = q.events_budget;
-    w.events = q.events;
-    w.events_max = q.events_max;
-    m.queues.push_back(std::move(w));
+    m.queues.push_back(element_to_wire<QueueStatsRecord, evpipe::queue_stats_t>(kQueueStatsFields, q));
   }
+}
+
+void field_from_wire(StatsQueuesField /*f*/, const evpipe::stats_t& m, StatsRecord& r, std::string_view /*type*/) {
+  for (const evpipe::queue_stats_t& w : m.queues) {
+    r.queues.push_back(element_from_wire<QueueStatsRecord>(kQueueStatsFields, w, "queue_stats_t"));
+  }
+}
+
+void field_to_wire(StatsDenoiseFiguresField /*f*/, const StatsRecord& r, evpipe::stats_t& m) {
   m.num_denoise_figures = count_i32(r.denoise_figures.size(), "denoise_figures");
   for (const auto& [name, value] : r.denoise_figures) {
     m.denoise_figure_names.push_back(name);
     m.denoise_figures.push_back(value);
   }
+}
+
+void field_from_wire(StatsDenoiseFiguresField /*f*/, const evpipe::stats_t& m, StatsRecord& r,
+                     std::string_view /*type*/) {
+  for (std::size_t i = 0; i < m.denoise_figures.size(); ++i) {
+    r.denoise_figures.emplace_back(m.denoise_figure_names[i], m.denoise_figures[i]);
+  }
+}
+
+}  // namespace
+
+evpipe::pose_t to_lcm(const PoseRecord& r) {
+  evpipe::pose_t m;
+  for_each_field(kPoseFields, [&](const auto& f) { field_to_wire(f, r, m); });
+  return m;
+}
+
+PoseRecord from_lcm(const evpipe::pose_t& m) {
+  PoseRecord r;
+  for_each_field(kPoseFields, [&](const auto& f) { field_from_wire(f, m, r, "pose_t"); });
+  return r;
+}
+
+evpipe::stats_t to_lcm(const StatsRecord& r) {
+  evpipe::stats_t m;
+  for_each_field(kStatsFields, [&](const auto& f) { field_to_wire(f, r, m); });
   return m;
 }
 
@@ -194,30 +232,7 @@ StatsRecord from_lcm(const evpipe::stats_t& m) {
                                   m.denoise_figure_names.size(), m.denoise_figures.size()));
   }
   StatsRecord r;
-  r.utime_us = m.utime;
-  r.seq = m.seq;
-  r.interval_us = m.interval_us;
-  r.t_us = m.t_us;
-  r.uptime_us = m.uptime_us;
-  r.source = m.source;
-  r.source_connected = m.source_connected != 0;
-  r.source_reconnects = m.source_reconnects;
-  r.status = status_from_wire(m.status, "stats_t");
-  r.poses_published = m.poses_published;
-  r.publish_failures = m.publish_failures;
-  r.latency_p50_us = m.latency_p50_us;
-  r.latency_p99_us = m.latency_p99_us;
-  for (const evpipe::stage_stats_t& w : m.stages) {
-    r.stages.push_back({w.name, w.events_in, w.events_kept, w.events_dropped, w.packets_in, w.busy_us, w.proc_p50_us,
-                        w.proc_p99_us, w.proc_max_us});
-  }
-  for (const evpipe::queue_stats_t& w : m.queues) {
-    r.queues.push_back(
-        {w.name, w.capacity, w.fill, w.fill_max, w.pushed, w.dropped, w.events_budget, w.events, w.events_max});
-  }
-  for (std::size_t i = 0; i < m.denoise_figures.size(); ++i) {
-    r.denoise_figures.emplace_back(m.denoise_figure_names[i], m.denoise_figures[i]);
-  }
+  for_each_field(kStatsFields, [&](const auto& f) { field_from_wire(f, m, r, "stats_t"); });
   return r;
 }
 

@@ -16,6 +16,9 @@
 #include <cstring>
 #include <utility>
 
+#include <sys/types.h>
+#include <unistd.h>
+
 namespace evpipe::transport {
 
 namespace {
@@ -37,6 +40,7 @@ struct LcmPublisher::LogSink {
   UniqueFile file;
   lcm_eventlog_t log{};
   bool failing{false};
+  off_t whole_size{0};  ///< the file's size after its last whole event: a failed write is cut back to it
 };
 
 LcmPublisher::LcmPublisher(LcmPublisherOptions options) : options_(std::move(options)) {
@@ -56,6 +60,9 @@ LcmPublisher::LcmPublisher(LcmPublisherOptions options) : options_(std::move(opt
     try {
       auto sink = std::make_unique<LogSink>();
       sink->file = open_output_file(parsed.target, options_.inputs);
+      // Unbuffered: an event is written by a few write() calls at once, so that a failed one can be cut off the
+      // file (a buffered stream would keep the part it could not write and retry it before the next event).
+      std::setvbuf(sink->file.get(), nullptr, _IONBF, 0);
       sink->log.f = sink->file.get();
       log_ = std::move(sink);
     } catch (const FileError& e) {
@@ -144,6 +151,11 @@ bool LcmPublisher::send_locked(const std::string& channel, const void* data, std
         std::ferror(log_->file.get()) != 0) {
       const int err = errno;
       std::clearerr(log_->file.get());
+      // A disk that filled up mid-event left part of it: cut it off, so that the log stays a sequence of whole
+      // events (readers such as lcm-logplayer stop at a partial one). Not possible on every file (/dev/full).
+      if (::ftruncate(::fileno(log_->file.get()), log_->whole_size) == 0) {
+        (void)::fseeko(log_->file.get(), log_->whole_size, SEEK_SET);
+      }
       if (!log_->failing) {
         last_error_ = fmt::format("cannot write the LCM log: {}", err != 0 ? std::strerror(err) : "write error");
         spdlog::warn("LCM: {}; counting failures", last_error_);
@@ -152,6 +164,7 @@ bool LcmPublisher::send_locked(const std::string& channel, const void* data, std
       ++counters_.publish_failures;
       return false;
     }
+    log_->whole_size = ::ftello(log_->file.get());
     if (log_->failing) {
       spdlog::info("LCM: writing the log again");
       last_error_.clear();

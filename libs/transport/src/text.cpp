@@ -5,7 +5,11 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstddef>
 #include <iterator>
+#include <string>
+#include <type_traits>
+#include <vector>
 
 namespace evpipe::transport {
 
@@ -32,123 +36,138 @@ const char* boolean(bool b) {
   return b ? "true" : "false";
 }
 
+void put_key(std::string& out, std::string_view name) {
+  out += ",\"";
+  out += name;
+  out += "\":";
+}
+
+// A record member as JSON, by its type (wire_field.hpp).
+template <typename T>
+void put_value(std::string& out, const T& v) {
+  if constexpr (std::is_same_v<T, bool>) {
+    out += boolean(v);
+  } else if constexpr (std::is_same_v<T, std::string>) {
+    put_str(out, v);
+  } else if constexpr (std::is_same_v<T, TrackStatus>) {
+    put_str(out, to_string(v));
+  } else if constexpr (std::is_floating_point_v<T>) {
+    put_num(out, v);
+  } else if constexpr (std::is_integral_v<T>) {
+    put_int(out, v);
+  } else {
+    static_assert(kIsStdArray<T>, "no JSON rendering for this member type");
+    out += '[';
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i) out += ',';
+      put_value(out, v[i]);
+    }
+    out += ']';
+  }
+}
+
+template <typename Record, typename Message, typename R, typename W>
+void put_field(std::string& out, const WireField<Record, Message, R, W>& f, const Record& r) {
+  put_key(out, f.name);
+  put_value(out, r.*f.record);
+}
+
+// pose_t's own descriptors (records.hpp).
+void put_field(std::string& out, PosePositionField f, const PoseRecord& r) {
+  put_key(out, f.name);
+  out += '[';
+  for (int i = 0; i < 3; ++i) {
+    if (i) out += ',';
+    put_num(out, r.T_cam_model.t_cam_model_m[i]);
+  }
+  out += ']';
+}
+
+void put_field(std::string& out, PoseOrientationField f, const PoseRecord& r) {
+  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
+  put_key(out, f.name);
+  out += '[';
+  put_num(out, q.qw);
+  out += ',';
+  put_num(out, q.qx);
+  out += ',';
+  put_num(out, q.qy);
+  out += ',';
+  put_num(out, q.qz);
+  out += ']';
+}
+
+void put_field(std::string& out, PoseCovarianceField f, const PoseRecord& r) {
+  put_key(out, f.name);
+  if (r.covariance_known) {
+    put_value(out, r.covariance);
+  } else {
+    out += "null";  // rather than 36 zeros that look like certainty
+  }
+}
+
+// stats_t's lists (records.hpp).
+template <typename Table, typename Record>
+void put_object(std::string& out, const Table& table, const Record& r) {
+  std::string fields;
+  for_each_field(table, [&](const auto& f) { put_field(fields, f, r); });
+  if (fields.empty()) {
+    out += "{}";
+    return;
+  }
+  fields.front() = '{';  // the first field's ','
+  out += fields;
+  out += '}';
+}
+
+template <typename Table, typename Record>
+void put_list(std::string& out, std::string_view name, const Table& table, const std::vector<Record>& items) {
+  put_key(out, name);
+  out += '[';
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    if (i) out += ',';
+    put_object(out, table, items[i]);
+  }
+  out += ']';
+}
+
+void put_field(std::string& out, StatsStagesField f, const StatsRecord& r) {
+  put_list(out, f.name, kStageStatsFields, r.stages);
+}
+
+void put_field(std::string& out, StatsQueuesField f, const StatsRecord& r) {
+  put_list(out, f.name, kQueueStatsFields, r.queues);
+}
+
+void put_field(std::string& out, StatsDenoiseFiguresField f, const StatsRecord& r) {
+  put_key(out, f.name);
+  out += '{';
+  for (std::size_t i = 0; i < r.denoise_figures.size(); ++i) {
+    if (i) out += ',';
+    put_str(out, r.denoise_figures[i].first);
+    out += ':';
+    put_num(out, r.denoise_figures[i].second);
+  }
+  out += '}';
+}
+
 }  // namespace
 
 std::string to_json(const PoseRecord& r, std::string_view channel) {
   std::string o = "{\"channel\":";
   put_str(o, channel);
-  o += ",\"type\":\"evpipe.pose_t\",\"utime\":";
-  put_int(o, r.utime_us);
-  o += ",\"t_us\":";
-  put_int(o, r.t_us);
-  o += ",\"t_last_update_us\":";
-  put_int(o, r.t_last_update_us);
-  o += ",\"seq\":";
-  put_int(o, r.seq);
-  o += ",\"camera_frame\":";
-  put_str(o, r.camera_frame);
-  o += ",\"model_frame\":";
-  put_str(o, r.model_frame);
-  o += ",\"status\":";
-  put_str(o, to_string(r.status));
-  fmt::format_to(std::back_inserter(o), ",\"pose_valid\":{},\"position_m\":[", boolean(r.pose_valid));
-  for (int i = 0; i < 3; ++i) {
-    if (i) o += ',';
-    put_num(o, r.T_cam_model.t_cam_model_m[i]);
-  }
-  const camera::WireQuaternion q = camera::to_wire(r.T_cam_model.q_cam_model);
-  o += "],\"orientation\":[";
-  put_num(o, q.qw);
-  o += ',';
-  put_num(o, q.qx);
-  o += ',';
-  put_num(o, q.qy);
-  o += ',';
-  put_num(o, q.qz);
-  fmt::format_to(std::back_inserter(o), "],\"covariance_known\":{},\"covariance\":", boolean(r.covariance_known));
-  if (r.covariance_known) {
-    o += '[';
-    for (std::size_t i = 0; i < r.covariance.size(); ++i) {
-      if (i) o += ',';
-      put_num(o, r.covariance[i]);
-    }
-    o += ']';
-  } else {
-    o += "null";
-  }
-  o += ",\"window_events\":";
-  put_int(o, r.window_events);
-  o += ",\"inliers\":";
-  put_int(o, r.inliers);
-  o += ",\"sigma_px\":";
-  put_num(o, r.sigma_px);
-  o += ",\"latency_us\":";
-  put_int(o, r.latency_us);
-  fmt::format_to(std::back_inserter(o), ",\"source_connected\":{}}}", boolean(r.source_connected));
+  o += ",\"type\":\"evpipe.pose_t\"";
+  for_each_field(kPoseFields, [&](const auto& f) { put_field(o, f, r); });
+  o += '}';
   return o;
 }
 
 std::string to_json(const StatsRecord& r, std::string_view channel) {
   std::string o = "{\"channel\":";
   put_str(o, channel);
-  o += ",\"type\":\"evpipe.stats_t\",\"utime\":";
-  put_int(o, r.utime_us);
-  o += ",\"seq\":";
-  put_int(o, r.seq);
-  o += ",\"interval_us\":";
-  put_int(o, r.interval_us);
-  o += ",\"t_us\":";
-  put_int(o, r.t_us);
-  o += ",\"uptime_us\":";
-  put_int(o, r.uptime_us);
-  o += ",\"source\":";
-  put_str(o, r.source);
-  fmt::format_to(std::back_inserter(o),
-                 ",\"source_connected\":{},\"source_reconnects\":{},\"status\":", boolean(r.source_connected),
-                 r.source_reconnects);
-  put_str(o, to_string(r.status));
-  fmt::format_to(std::back_inserter(o),
-                 ",\"poses_published\":{},\"publish_failures\":{},\"latency_p50_us\":", r.poses_published,
-                 r.publish_failures);
-  put_num(o, r.latency_p50_us);
-  o += ",\"latency_p99_us\":";
-  put_num(o, r.latency_p99_us);
-  o += ",\"stages\":[";
-  for (std::size_t i = 0; i < r.stages.size(); ++i) {
-    const StageStatsRecord& s = r.stages[i];
-    if (i) o += ',';
-    o += "{\"name\":";
-    put_str(o, s.name);
-    fmt::format_to(std::back_inserter(o),
-                   ",\"events_in\":{},\"events_kept\":{},\"events_dropped\":{},\"packets_in\":{},\"busy_us\":{}",
-                   s.events_in, s.events_kept, s.events_dropped, s.packets_in, s.busy_us);
-    o += ",\"proc_p50_us\":";
-    put_num(o, s.proc_p50_us);
-    o += ",\"proc_p99_us\":";
-    put_num(o, s.proc_p99_us);
-    o += ",\"proc_max_us\":";
-    put_num(o, s.proc_max_us);
-    o += '}';
-  }
-  o += "],\"queues\":[";
-  for (std::size_t i = 0; i < r.queues.size(); ++i) {
-    const QueueStatsRecord& q = r.queues[i];
-    if (i) o += ',';
-    o += "{\"name\":";
-    put_str(o, q.name);
-    fmt::format_to(std::back_inserter(o),
-                   ",\"capacity\":{},\"fill\":{},\"fill_max\":{},\"pushed\":{},\"dropped\":{},\"events_budget\":{},"
-                   "\"events\":{},\"events_max\":{}}}",
-                   q.capacity, q.fill, q.fill_max, q.pushed, q.dropped, q.events_budget, q.events, q.events_max);
-  }
-  o += "],\"denoise_figures\":{";
-  for (std::size_t i = 0; i < r.denoise_figures.size(); ++i) {
-    if (i) o += ',';
-    put_str(o, r.denoise_figures[i].first);
-    o += ':';
-    put_num(o, r.denoise_figures[i].second);
-  }
-  o += "}}";
+  o += ",\"type\":\"evpipe.stats_t\"";
+  for_each_field(kStatsFields, [&](const auto& f) { put_field(o, f, r); });
+  o += '}';
   return o;
 }
 

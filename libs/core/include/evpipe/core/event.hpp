@@ -5,6 +5,7 @@
 // image origin top-left, x right, y down; polarity true = ON (brightness increase).
 
 #include <algorithm>
+#include <chrono>
 #include <cstdint>
 #include <iterator>
 #include <memory>
@@ -36,6 +37,10 @@ struct EventBatch {
   /// True when the source's clock jumped (device timestamp reset, backward jump in a file) before this
   /// batch: windows and trackers that span batches must restart here.
   bool discontinuity_before = false;
+  /// Host (steady clock) time the source delivered the events: when a reader or the camera made the batch, when a
+  /// paced replay released it; a filter's kept batch carries that of the input batch holding its newest event.
+  /// Latency figures start here; {} when unknown.
+  std::chrono::steady_clock::time_point read_at{};
 
   [[nodiscard]] EventSpan span() const noexcept { return events; }
   [[nodiscard]] bool empty() const noexcept { return events.empty(); }

@@ -50,7 +50,7 @@ class TimeSlicer {
     /// Empty windows that end at most this long after the newest event are emitted (0: none, the default).
     std::int64_t max_empty_span_us = 0;
   };
-  using Callback = std::function<void(const EventWindow&)>;
+  using Callback = std::function<void(EventWindow&&)>;  ///< the window is the callee's: it may move it on
 
   /// Throws std::invalid_argument when window_us <= 0 or hop_us <= 0.
   explicit TimeSlicer(Options options, Callback callback);

@@ -34,6 +34,10 @@ struct SourceStats {
   std::uint64_t truncated_bytes = 0;  ///< bytes of a trailing partial record / packet ignored
 };
 
+/// Whether a source's device is there. Files are `connected` from start to end; a live camera that was unplugged is
+/// `disconnected` while the source retries, and `closed` once it is closed for good.
+enum class SourceConnection : std::uint8_t { connected, disconnected, closed };
+
 class EventSource {
  public:
   virtual ~EventSource() = default;
@@ -51,6 +55,13 @@ class EventSource {
   [[nodiscard]] virtual const SourceStats& stats() const = 0;
   /// Fraction of the input consumed, in [0, 1], when known (files); nullopt for live sources.
   [[nodiscard]] virtual std::optional<double> progress() const { return std::nullopt; }
+  /// Is the device there? Any thread (a wrapper forwards its inner source's).
+  [[nodiscard]] virtual SourceConnection connection() const noexcept { return SourceConnection::connected; }
+  /// Times a disconnected device came back. Any thread.
+  [[nodiscard]] virtual std::uint64_t reconnects() const noexcept { return 0; }
+  /// Ends a wait inside next() at once (a paced replay's sleep) and makes the source end: next() returns nullptr and
+  /// finished() true from then on. Lock-free, any thread, safe from a signal handler. Default: nothing waits.
+  virtual void stop() noexcept {}
 };
 
 }  // namespace evpipe

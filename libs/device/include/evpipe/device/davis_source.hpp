@@ -157,10 +157,12 @@ class DavisSource final : public EventSource {
   [[nodiscard]] const SourceStats& stats() const override;
 
   [[nodiscard]] DeviceState state() const noexcept;
+  /// state() as every source says it (connected / disconnected / closed).
+  [[nodiscard]] SourceConnection connection() const noexcept override;
   [[nodiscard]] const DavisDeviceInfo& device_info() const noexcept;
   [[nodiscard]] const DavisOptions& options() const noexcept;
   /// Successful reopenings after a loss.
-  [[nodiscard]] std::uint64_t reconnects() const noexcept;
+  [[nodiscard]] std::uint64_t reconnects() const noexcept override;
 
   /// Tries to reopen a lost camera now, ignoring reconnect_interval_ms. True when connected afterwards
   /// (also when it already was); false after close().

@@ -3,6 +3,7 @@
 
 #include "evpipe/camera/line_model.hpp"
 #include "evpipe/camera/pose.hpp"
+#include "evpipe/core/track_status.hpp"
 
 #include <Eigen/Core>
 
@@ -12,25 +13,10 @@
 
 namespace evpipe::pose {
 
-/// Tracking status published with every pose (interfaces.md). The numeric values are the wire values of the LCM
-/// pose message. What each promises: tracking = measured in this window and verified; holding = the target is
-/// still (the window shows no motion near the model beyond the noise), the last measured pose is repeated;
-/// initialising and lost = no valid pose.
-enum class TrackStatus : std::uint8_t { initialising = 0, tracking = 1, lost = 2, holding = 3 };
-
-[[nodiscard]] constexpr std::string_view to_string(TrackStatus s) noexcept {
-  switch (s) {
-    case TrackStatus::initialising:
-      return "initialising";
-    case TrackStatus::tracking:
-      return "tracking";
-    case TrackStatus::lost:
-      return "lost";
-    case TrackStatus::holding:
-      return "holding";
-  }
-  return "?";
-}
+/// Tracking status published with every pose: the one definition in libs/core (evpipe/core/track_status.hpp),
+/// whose values are the wire values of the LCM pose message.
+using TrackStatus = evpipe::TrackStatus;
+using evpipe::to_string;
 
 /// 6x6 covariance of a pose, ordered [rotation (rad, small angle about the camera axes, left-multiplied:
 /// R = exp([dθ]x) R̂), translation (m, camera frame)].

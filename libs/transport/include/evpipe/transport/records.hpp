@@ -1,15 +1,23 @@
 #pragma once
 // Plain records the application fills from the pipeline's results and hands to the LCM publisher. They mirror
-// the LCM types in libs/transport/lcmtypes (package evpipe) field by field, with units in the names; the codec
-// (codec.hpp) is the only place that knows the wire layout. No LCM headers here.
+// the LCM types in libs/transport/lcmtypes (package evpipe), with units in the names. Each record's field table
+// (kPoseFields, kStatsFields, ... below) says which message field each member travels in; the codec (codec.cpp)
+// and the JSON printer (text.cpp) are generated from the tables.
 
 #include "evpipe/camera/pose.hpp"
+#include "evpipe/core/track_status.hpp"
+#include "evpipe/pose_t.hpp"
+#include "evpipe/queue_stats_t.hpp"
+#include "evpipe/stage_stats_t.hpp"
+#include "evpipe/stats_t.hpp"
+#include "evpipe/transport/wire_field.hpp"
 
 #include <array>
 #include <chrono>
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -18,10 +26,9 @@ namespace evpipe::transport {
 inline constexpr std::string_view kDefaultPoseChannel = "EVPIPE_POSE";
 inline constexpr std::string_view kDefaultStatsChannel = "EVPIPE_STATS";
 
-/// Tracking status on the wire (pose_t.STATUS_*); the values equal pose::TrackStatus's.
-enum class TrackingStatus : std::int8_t { initialising = 0, tracking = 1, lost = 2, holding = 3 };
-
-[[nodiscard]] std::string_view to_string(TrackingStatus s) noexcept;
+/// Tracking status on the wire (pose_t.STATUS_*): the one status type of libs/core, = pose::TrackStatus.
+using TrackingStatus = evpipe::TrackStatus;
+using evpipe::to_string;
 
 /// One published pose, T_cam_model (interfaces.md: p_cam = R * p_model + t).
 struct PoseRecord {
@@ -47,6 +54,51 @@ struct PoseRecord {
   std::int64_t latency_us{0};
   std::chrono::steady_clock::time_point newest_event_arrival{};  ///< host time the newest event arrived; {} = unset
   bool source_connected{true};
+};
+
+/// pose_t fields that are more than a copy of one member (codec.cpp and text.cpp implement them).
+struct PosePositionField {  ///< T_cam_model.t_cam_model_m <-> position_m[3]; decoding refuses non-finite values
+  static constexpr std::string_view name{"position_m"};
+};
+struct PoseOrientationField {  ///< T_cam_model.q_cam_model <-> orientation[4] = camera::to_wire (qw qx qy qz)
+  static constexpr std::string_view name{"orientation"};
+};
+struct PoseCovarianceField {  ///< covariance <-> covariance[36]; zeros (JSON null) unless covariance_known
+  static constexpr std::string_view name{"covariance"};
+};
+
+/// PoseRecord <-> pose_t: one line per field of pose_t.lcm, in the order of the JSON line (evpipe-lcm-echo);
+/// the wire order is pose_t.lcm's. The codec (to_lcm / from_lcm, hence encode / decode_pose) and to_json are
+/// generated from this table (tests/transport/test_record_fields.cpp checks it against pose_t.lcm).
+///
+/// Adding a field to pose_t touches three code files (and its row in docs/operations.md's pose_t table):
+///   1. libs/transport/lcmtypes/pose_t.lcm: the field, with its unit in the name or the comment (last, so that
+///      the order of the others is kept; the type's fingerprint changes: say so in docs/operations.md);
+///   2. this file: the PoseRecord member (defaulted) and its line below, e.g.
+///        wire_field("range_m", &PoseRecord::range_m, &evpipe::pose_t::range_m),
+///      (same type both sides; bool for an LCM boolean; std::array<T, N> for T name[N]; anything else needs a
+///      descriptor of its own like PosePositionField);
+///   3. the mapping estimate -> PoseRecord (`to_record`, the one place the pipeline's result becomes a record):
+///        r.range_m = e.range_m;
+/// evpipe-lcm-echo's JSON and the round trip then carry it; the --text line (to_text) lists chosen fields only.
+inline constexpr std::tuple kPoseFields{
+    wire_field("utime", &PoseRecord::utime_us, &evpipe::pose_t::utime),
+    wire_field("t_us", &PoseRecord::t_us, &evpipe::pose_t::t_us),
+    wire_field("t_last_update_us", &PoseRecord::t_last_update_us, &evpipe::pose_t::t_last_update_us),
+    wire_field("seq", &PoseRecord::seq, &evpipe::pose_t::seq),
+    wire_field("camera_frame", &PoseRecord::camera_frame, &evpipe::pose_t::camera_frame),
+    wire_field("model_frame", &PoseRecord::model_frame, &evpipe::pose_t::model_frame),
+    wire_field("status", &PoseRecord::status, &evpipe::pose_t::status),
+    wire_field("pose_valid", &PoseRecord::pose_valid, &evpipe::pose_t::pose_valid),
+    PosePositionField{},
+    PoseOrientationField{},
+    wire_field("covariance_known", &PoseRecord::covariance_known, &evpipe::pose_t::covariance_known),
+    PoseCovarianceField{},
+    wire_field("window_events", &PoseRecord::window_events, &evpipe::pose_t::window_events),
+    wire_field("inliers", &PoseRecord::inliers, &evpipe::pose_t::inliers),
+    wire_field("sigma_px", &PoseRecord::sigma_px, &evpipe::pose_t::sigma_px),
+    wire_field("latency_us", &PoseRecord::latency_us, &evpipe::pose_t::latency_us),
+    wire_field("source_connected", &PoseRecord::source_connected, &evpipe::pose_t::source_connected),
 };
 
 /// Counters of one stage. Counts cumulative since start; processing times over the last interval.
@@ -96,6 +148,66 @@ struct StatsRecord {
   std::vector<QueueStatsRecord> queues;
   /// The denoising filter's own figures (name, value), e.g. noise_rate_hz, density_threshold_used.
   std::vector<std::pair<std::string, double>> denoise_figures;
+};
+
+/// StageStatsRecord <-> stage_stats_t, QueueStatsRecord <-> queue_stats_t and StatsRecord <-> stats_t, as
+/// kPoseFields: one line per field of the .lcm file, in JSON order; a new scalar statistic is one line here.
+inline constexpr std::tuple kStageStatsFields{
+    wire_field("name", &StageStatsRecord::name, &evpipe::stage_stats_t::name),
+    wire_field("events_in", &StageStatsRecord::events_in, &evpipe::stage_stats_t::events_in),
+    wire_field("events_kept", &StageStatsRecord::events_kept, &evpipe::stage_stats_t::events_kept),
+    wire_field("events_dropped", &StageStatsRecord::events_dropped, &evpipe::stage_stats_t::events_dropped),
+    wire_field("packets_in", &StageStatsRecord::packets_in, &evpipe::stage_stats_t::packets_in),
+    wire_field("busy_us", &StageStatsRecord::busy_us, &evpipe::stage_stats_t::busy_us),
+    wire_field("proc_p50_us", &StageStatsRecord::proc_p50_us, &evpipe::stage_stats_t::proc_p50_us),
+    wire_field("proc_p99_us", &StageStatsRecord::proc_p99_us, &evpipe::stage_stats_t::proc_p99_us),
+    wire_field("proc_max_us", &StageStatsRecord::proc_max_us, &evpipe::stage_stats_t::proc_max_us),
+};
+
+inline constexpr std::tuple kQueueStatsFields{
+    wire_field("name", &QueueStatsRecord::name, &evpipe::queue_stats_t::name),
+    wire_field("capacity", &QueueStatsRecord::capacity, &evpipe::queue_stats_t::capacity),
+    wire_field("fill", &QueueStatsRecord::fill, &evpipe::queue_stats_t::fill),
+    wire_field("fill_max", &QueueStatsRecord::fill_max, &evpipe::queue_stats_t::fill_max),
+    wire_field("pushed", &QueueStatsRecord::pushed, &evpipe::queue_stats_t::pushed),
+    wire_field("dropped", &QueueStatsRecord::dropped, &evpipe::queue_stats_t::dropped),
+    wire_field("events_budget", &QueueStatsRecord::events_budget, &evpipe::queue_stats_t::events_budget),
+    wire_field("events", &QueueStatsRecord::events, &evpipe::queue_stats_t::events),
+    wire_field("events_max", &QueueStatsRecord::events_max, &evpipe::queue_stats_t::events_max),
+};
+
+/// stats_t's lists: a count field and its array(s) together (codec.cpp and text.cpp implement them).
+struct StatsStagesField {  ///< stages <-> num_stages + stages[] (kStageStatsFields); JSON a list of objects
+  static constexpr std::string_view name{"stages"};
+  static constexpr std::array<std::string_view, 2> wire_names{"num_stages", "stages"};
+};
+struct StatsQueuesField {  ///< queues <-> num_queues + queues[] (kQueueStatsFields); JSON a list of objects
+  static constexpr std::string_view name{"queues"};
+  static constexpr std::array<std::string_view, 2> wire_names{"num_queues", "queues"};
+};
+struct StatsDenoiseFiguresField {  ///< (name, value) pairs <-> two parallel arrays; JSON an object name: value
+  static constexpr std::string_view name{"denoise_figures"};
+  static constexpr std::array<std::string_view, 3> wire_names{"num_denoise_figures", "denoise_figure_names",
+                                                              "denoise_figures"};
+};
+
+inline constexpr std::tuple kStatsFields{
+    wire_field("utime", &StatsRecord::utime_us, &evpipe::stats_t::utime),
+    wire_field("seq", &StatsRecord::seq, &evpipe::stats_t::seq),
+    wire_field("interval_us", &StatsRecord::interval_us, &evpipe::stats_t::interval_us),
+    wire_field("t_us", &StatsRecord::t_us, &evpipe::stats_t::t_us),
+    wire_field("uptime_us", &StatsRecord::uptime_us, &evpipe::stats_t::uptime_us),
+    wire_field("source", &StatsRecord::source, &evpipe::stats_t::source),
+    wire_field("source_connected", &StatsRecord::source_connected, &evpipe::stats_t::source_connected),
+    wire_field("source_reconnects", &StatsRecord::source_reconnects, &evpipe::stats_t::source_reconnects),
+    wire_field("status", &StatsRecord::status, &evpipe::stats_t::status),
+    wire_field("poses_published", &StatsRecord::poses_published, &evpipe::stats_t::poses_published),
+    wire_field("publish_failures", &StatsRecord::publish_failures, &evpipe::stats_t::publish_failures),
+    wire_field("latency_p50_us", &StatsRecord::latency_p50_us, &evpipe::stats_t::latency_p50_us),
+    wire_field("latency_p99_us", &StatsRecord::latency_p99_us, &evpipe::stats_t::latency_p99_us),
+    StatsStagesField{},
+    StatsQueuesField{},
+    StatsDenoiseFiguresField{},
 };
 
 /// Host wall clock now, us since the Unix epoch (the utime of LCM messages).

@@ -1,5 +1,6 @@
 #pragma once
-// One-line renderings of the records for evpipe-lcm-echo and logs: JSON (keys are the LCM field names) and text.
+// One-line renderings of the records for evpipe-lcm-echo and logs: JSON (keys are the LCM field names, generated
+// from the records' field tables in records.hpp, in table order) and text (chosen fields, written by hand).
 
 #include "evpipe/transport/records.hpp"
 
