@@ -1,7 +1,7 @@
-// evpipe: DAVIS346 event stream (live over USB, or a replayed recording) → denoise (the paper's curvature filter
-// by default) → 30 ms sliding windows → pose (OPnL initialisation, MM tracking) → LCM, one thread per stage
-// (libs/stages on libs/runtime, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd; a summary at the
-// end.
+// evpipe: DAVIS346 event stream (live over USB, or a replayed recording) → denoise (`significance` by default; the
+// paper's curvature filter on request) → 30 ms sliding windows → pose (OPnL initialisation, MM tracking) → LCM, one
+// thread per stage (libs/stages on libs/runtime, docs/architecture.md); sd_notify READY/STATUS/WATCHDOG under systemd;
+// a summary at the end.
 //
 // Exit status: 0 success (also after SIGINT/SIGTERM/SIGHUP), 1 runtime error (bad file, device, an LCM log of which
 // nothing could be written), 2 usage or configuration error (also an output that is one of the inputs, an invalid

@@ -85,8 +85,9 @@ std::string format_text(const RunSummary& s) {
                               s.window_events));
   if (s.pose.enabled) {
     const auto& p = s.pose;
-    line("poses",
-         fmt::format("{} valid of {} windows ({:.1f} Hz of sensor time)", p.valid_poses, p.windows, update_rate_hz(p)));
+    line("poses", fmt::format("{} valid of {} windows ({:.1f} Hz of sensor time), each stamped at its window's middle "
+                              "(t_us = window start + {} ms)",
+                              p.valid_poses, p.windows, update_rate_hz(p), s.window_us / 2000.0));
     line("pose status",
          fmt::format("initialising {:.1f} %, tracking {:.1f} %, holding {:.1f} %, lost {:.1f} %",
                      100 * share(p.windows_by_status[0], p.windows), 100 * share(p.windows_by_status[1], p.windows),

@@ -59,7 +59,7 @@ void LcmSink::publish_stats(const PipelineStats& stats) {
       if (processor_ && publisher_) {
         pose::PoseEstimate lost;
         lost.status = pose::TrackStatus::lost;
-        lost.t_us = last_t_us_;  // the last sensor time seen; the device clock restarts on reconnect
+        lost.t_us = last_t_us_;  // the last published pose's time; the device clock restarts on reconnect
         if (last_good_) lost.T_cam_model = *last_good_;
         lost.note = "camera lost";
         publisher_->publish_pose(to_record(lost, false));
