@@ -335,6 +335,54 @@ TEST(PipelineGraph, AStageErrorStopsThePipelineWithTheReason) {
   EXPECT_EQ(sink.stats.back().error, *error);
 }
 
+// The sequential runner reports the stage that threw as the threads do (the reference of the graph tests must fail
+// the same way), and the pipeline can still be joined and destroyed after it.
+TEST(PipelineGraph, RunSequentialNamesTheStageThatFailed) {
+  const auto batches = synthetic(11, 400, 500);
+  RecordingProcessor processor;
+  processor.throw_at = 5;
+  RecordingSink sink;
+  Pipeline p(std::make_unique<VectorSource>(batches), nullptr, processor, sink);
+  const auto error = p.run_sequential();
+  ASSERT_TRUE(error);
+  EXPECT_EQ(*error, "pose: estimator exploded at window 5");
+  const auto s = p.stats();
+  EXPECT_EQ(s.stages[1].state, StageState::finished);
+  EXPECT_EQ(s.stages[2].state, StageState::failed);
+  EXPECT_EQ(s.source.state, SourceState::stopped);
+  EXPECT_FALSE(s.running);
+  EXPECT_EQ(sink.samples.size(), 5u);
+  ASSERT_FALSE(sink.stats.empty());
+  EXPECT_EQ(sink.stats.back().error, *error);
+  EXPECT_TRUE(p.wait_for(0ns));
+  p.join();  // nothing to join; the destructor after it neither hangs nor throws
+}
+
+/// A publish stage whose statistics cannot go out (the first periodic publish_stats throws).
+class StatsFailingSink final : public PoseSink {
+ public:
+  void publish_pose(const PoseSample& /*s*/) override {}
+  void publish_stats(const PipelineStats& /*s*/) override {
+    if (calls_++ == 0) throw std::runtime_error("stats link down");
+  }
+
+ private:
+  int calls_ = 0;
+};
+
+TEST(PipelineGraph, AFailingStatisticsPublishIsThePublishStagesErrorThreadedOrSequential) {
+  for (const bool sequential : {false, true}) {
+    SCOPED_TRACE(sequential ? "sequential" : "threaded");
+    RecordingProcessor processor;
+    StatsFailingSink sink;
+    Pipeline p(std::make_unique<VectorSource>(synthetic(12, 40, 500)), nullptr, processor, sink);
+    const auto error = sequential ? p.run_sequential() : p.run();
+    ASSERT_TRUE(error);
+    EXPECT_EQ(*error, "publish: stats link down");
+    EXPECT_EQ(p.stats().stages[3].state, StageState::failed);
+  }
+}
+
 class ThrowingSource final : public EventSource {
  public:
   EventBatchPtr next() override {

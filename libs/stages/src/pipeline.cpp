@@ -569,6 +569,8 @@ std::optional<std::string> Pipeline::run_sequential() {
       s.fail_in_line(e);
     } catch (const std::exception& e) {
       s.fail_in_line(StageFailure(s.m_denoise.name(), e.what()));
+    } catch (...) {
+      s.fail_in_line(StageFailure(s.m_denoise.name(), "unknown exception"));
     }
   }
   for (StageMetrics* m : {&s.m_denoise, &s.m_pose, &s.m_publish}) {
