@@ -125,8 +125,9 @@ class DenoiseStage final : public Stage<EventBatchPtr> {
 
   void emit(EventWindow&& w) {
     const auto now = Clock::now();
-    // The newest event's batch; an empty window (nothing kept) was completed by time: the batch that brought its
-    // end. A source that does not stamp its batches: the window's completion.
+    // The newest event's batch; an empty window (nothing kept) was completed by time: the input batch being
+    // processed when it was cut (with a look-ahead filter, later than the one that brought its end). A source that
+    // does not stamp its batches: the window's completion.
     auto read_at = w.owners.empty() ? input_read_at_ : w.owners.back()->read_at;
     if (read_at == Clock::time_point{}) read_at = now;
     const std::size_t n = w.size();
