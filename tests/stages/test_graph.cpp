@@ -128,8 +128,9 @@ std::unique_ptr<denoise::Filter> filter_for(const std::string& name, const Senso
 }
 
 /// The reference: the same stages driven on the calling thread (Pipeline::run_sequential), the windows they cut.
+/// `final_stats`: the statistics it ends with.
 std::vector<WindowRecord> sequential_windows(std::unique_ptr<EventSource> source, const std::string& filter_name,
-                                             PipelineOptions o) {
+                                             PipelineOptions o, PipelineStats* final_stats = nullptr) {
   RecordingProcessor processor;
   RecordingSink sink;
   o.mode = Mode::replay;
@@ -141,6 +142,7 @@ std::vector<WindowRecord> sequential_windows(std::unique_ptr<EventSource> source
   EXPECT_EQ(sink.samples.size(), processor.windows.size());
   for (std::size_t i = 0; i < sink.samples.size(); ++i) EXPECT_EQ(sink.samples[i].window_index, i);
   EXPECT_FALSE(p.stats().running);
+  if (final_stats) *final_stats = p.stats();
   return processor.windows;
 }
 
@@ -179,7 +181,8 @@ bool wait_until(const std::function<bool()>& pred, std::chrono::milliseconds tim
 
 void replay_equals_sequential(const std::string& path, const std::string& filter, PipelineOptions o) {
   SCOPED_TRACE(path + " filter " + filter);
-  const auto want = sequential_windows(io::open_reader(path), filter, o);
+  PipelineStats want_stats;
+  const auto want = sequential_windows(io::open_reader(path), filter, o, &want_stats);
   ASSERT_GT(want.size(), 10u);
 
   auto source = io::open_reader(path);
@@ -208,6 +211,23 @@ void replay_equals_sequential(const std::string& path, const std::string& filter
   }
   expect_queue_accounting(s);
   for (const auto& q : s.queues) EXPECT_EQ(q.dropped, 0u) << q.name;  // replay is lossless
+  // The sequential runner counts as the threads do (a lossless replay: the same items and events at every stage).
+  EXPECT_EQ(s.source.state, want_stats.source.state);
+  EXPECT_EQ(s.windows, want_stats.windows);
+  EXPECT_EQ(s.denoise_events_kept, want_stats.denoise_events_kept);
+  EXPECT_EQ(s.poses_published, want_stats.poses_published);
+  ASSERT_EQ(s.stages.size(), want_stats.stages.size());
+  for (std::size_t k = 0; k < s.stages.size(); ++k) {
+    const auto& a = s.stages[k];
+    const auto& b = want_stats.stages[k];
+    SCOPED_TRACE("stage " + a.name);
+    EXPECT_EQ(a.state, b.state);
+    EXPECT_EQ(a.items_in, b.items_in);
+    EXPECT_EQ(a.items_out, b.items_out);
+    EXPECT_EQ(a.events_in, b.events_in);
+    EXPECT_EQ(a.events_out, b.events_out);
+    EXPECT_EQ(a.items_dropped, b.items_dropped);
+  }
   for (const auto& st : s.stages) {
     EXPECT_EQ(st.state, StageState::finished) << st.name;
     EXPECT_EQ(st.items_dropped, 0u) << st.name;
