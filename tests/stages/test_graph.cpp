@@ -1,9 +1,11 @@
-// The whole pipeline graph: replay equals the sequential FilteredStream + TimeSlicer output window by window,
+// The whole pipeline graph: a threaded replay equals Pipeline::run_sequential (the same stages on one thread) window
+// by window and count by count, and both equal FilteredStream + TimeSlicer run directly (an independent reference),
 // overload with the live policies, stage errors, shutdown within 1 s (also with full queues and from a signal
 // handler), and a fake camera unplugged and replugged under a running pipeline (libcaer stub).
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -11,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -146,6 +149,35 @@ std::vector<WindowRecord> sequential_windows(std::unique_ptr<EventSource> source
   return processor.windows;
 }
 
+/// The independent reference: the filter and the slicer alone, without the pipeline's stages.
+std::vector<WindowRecord> direct_windows(EventSource& source, const std::string& filter_name,
+                                         const PipelineOptions& o) {
+  std::vector<WindowRecord> out;
+  auto filter = filter_for(filter_name, source.info().geometry);
+  std::optional<denoise::FilteredStream> stream;
+  if (filter) stream.emplace(*filter);
+  TimeSlicer slicer({o.window_us, o.hop_us, std::nullopt}, [&](EventWindow&& w) {
+    out.push_back({w.t0_us, w.t1_us, w.starts_segment, w.contiguous()});
+  });
+  std::vector<EventBatch> kept;
+  while (auto b = source.next()) {
+    if (!stream) {
+      slicer.accept(b);
+      continue;
+    }
+    kept.clear();
+    stream->push(b, kept);
+    for (auto& k : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(k)));
+  }
+  if (stream) {
+    kept.clear();
+    stream->finish(kept);
+    for (auto& k : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(k)));
+  }
+  slicer.flush();
+  return out;
+}
+
 // After the end every queue is empty and each item offered was either taken or dropped (counted).
 void expect_queue_accounting(const PipelineStats& s) {
   for (const auto& q : s.queues) {
@@ -184,6 +216,7 @@ void replay_equals_sequential(const std::string& path, const std::string& filter
   PipelineStats want_stats;
   const auto want = sequential_windows(io::open_reader(path), filter, o, &want_stats);
   ASSERT_GT(want.size(), 10u);
+  EXPECT_EQ(first_window_difference(want, direct_windows(*io::open_reader(path), filter, o)), "");
 
   auto source = io::open_reader(path);
   const auto geometry = source->info().geometry;
@@ -315,11 +348,19 @@ TEST(PipelineGraph, StatisticsCarryTheFiltersFiguresWhileRunning) {
 TEST(PipelineGraph, ClockSegmentsAreWindowedAsSequentially) {
   const std::uint32_t seed = 7;
   SCOPED_TRACE("seed " + std::to_string(seed));
-  const auto batches = synthetic(seed, 300, 500, 3);
+  // Each batch stamped with its own read time (its index + 1 ms on the steady clock's epoch).
+  std::vector<EventBatchPtr> batches;
+  for (const auto& b : synthetic(seed, 300, 500, 3)) {
+    auto stamped = std::make_shared<EventBatch>(*b);
+    stamped->read_at = Clock::time_point(std::chrono::milliseconds(batches.size() + 1));
+    batches.push_back(std::move(stamped));
+  }
   PipelineOptions o;
   o.window_us = 5'000;
   o.hop_us = 2'500;
   const auto want = sequential_windows(std::make_unique<VectorSource>(batches), "baf", o);
+  VectorSource reference(batches);
+  EXPECT_EQ(first_window_difference(want, direct_windows(reference, "baf", o)), "");
   RecordingProcessor processor;
   RecordingSink sink;
   Pipeline p(std::make_unique<VectorSource>(batches), filter_for("baf", kDavis346), processor, sink, o);
@@ -328,8 +369,25 @@ TEST(PipelineGraph, ClockSegmentsAreWindowedAsSequentially) {
   int segments = 0;
   for (const auto& w : processor.windows) segments += w.starts_segment ? 1 : 0;
   EXPECT_EQ(segments, 3);
-  // Read times map into the right segment: never after the window was emitted.
-  for (const auto& s : sink.samples) EXPECT_LE(s.newest_event_read, s.window_ready);
+  // A window's read time is that of the input batch holding its newest (kept) event, in the window's own clock
+  // segment (times repeat across segments: 100 batches each).
+  ASSERT_EQ(sink.samples.size(), processor.windows.size());
+  int segment = -1;
+  for (std::size_t i = 0; i < processor.windows.size(); ++i) {
+    const auto& w = processor.windows[i];
+    if (w.starts_segment) ++segment;
+    ASSERT_FALSE(w.events.empty());
+    const Event& newest = w.events.back();
+    std::optional<Clock::time_point> read_at;
+    for (std::size_t b = 100 * static_cast<std::size_t>(segment); b < 100 * static_cast<std::size_t>(segment + 1);
+         ++b) {
+      const auto& ev = batches[b]->events;
+      if (std::find(ev.begin(), ev.end(), newest) != ev.end()) read_at = batches[b]->read_at;
+    }
+    ASSERT_TRUE(read_at) << "window " << i;
+    EXPECT_EQ(sink.samples[i].newest_event_read, *read_at) << "window " << i;
+    EXPECT_LE(sink.samples[i].newest_event_read, sink.samples[i].window_ready);
+  }
 }
 
 // ---- errors ----
