@@ -160,7 +160,7 @@ INSTANTIATE_TEST_SUITE_P(Targets, EstimatorScenes, ::testing::Values(0, 1), [](c
   return std::string(param_info.param == 0 ? "planar" : "roadheader");
 });
 
-// The split form PoseStage runs with its initialisation worker: the attempt is cut out on one window, later
+// The split form stages::PoseProcessor runs with its initialisation worker: the attempt is cut out on one window, later
 // windows pass as "initialising" while it runs, and its outcome starts the track on a later window, which is
 // then tracked from the found pose. Its result equals process() on the same window, and a reset() in between
 // discards it.
@@ -250,8 +250,8 @@ TEST(PoseEstimator, CatchUpOnTheWorkerEqualsTheCatchUpOnThePoseThread) {
   SCOPED_TRACE(::testing::Message() << "seed " << seed);
   // As above (motion five times faster, 8 windows during the attempt): once on the pose thread
   // (complete_initialisation alone), once with the worker tracking the fed windows first (advance_initialisation,
-  // as PoseStage does), which leaves one slice to the pose thread. Same slices, same events: the same pose (to the
-  // solver's tolerance: the histories differ before the attempt's window).
+  // as stages::PoseProcessor does), which leaves one slice to the pose thread. Same slices, same events: the same pose
+  // (to the solver's tolerance: the histories differ before the attempt's window).
   const Scene s("roadheader-wireframe.yaml", 1.0, seed, 1'500'000, 5.0);
   pose::EstimatorOptions o;  // evpipe's: slices of the pipeline's windows, one hop apart
   o.track.window_us = kWindow_us;
@@ -280,7 +280,7 @@ TEST(PoseEstimator, CatchUpOnTheWorkerEqualsTheCatchUpOnThePoseThread) {
     const auto w = s.window(t0, t0 + kWindow_us);
     a.initialising_window(w, t0 + kWindow_us);
     b.initialising_window(w, t0 + kWindow_us);
-    const std::int64_t newest = fed.back().t_us;  // as PoseStage feeds: every event newer than those fed
+    const std::int64_t newest = fed.back().t_us;  // as PoseProcessor feeds: every event newer than those fed
     for (const Event& e : w)
       if (e.t_us > newest) fed.push_back(e);
     fed_t_us = t0 + kWindow_us;

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <limits>
@@ -100,4 +101,47 @@ TEST(PacedSource, TimesAtTheEndsOfTheTimeLine) {
   });
   EXPECT_EQ(far.next(), nullptr);
   stopper.join();
+}
+
+namespace {
+/// A camera-like inner source: reports its connection and reconnects, records stop().
+class Device final : public EventSource {
+ public:
+  EventBatchPtr next() override { return stopped.load() ? nullptr : batch({t_us += 10}); }
+  [[nodiscard]] bool finished() const override { return stopped.load(); }
+  [[nodiscard]] const SourceInfo& info() const override { return info_; }
+  [[nodiscard]] const SourceStats& stats() const override { return stats_; }
+  [[nodiscard]] SourceConnection connection() const noexcept override { return SourceConnection::disconnected; }
+  [[nodiscard]] std::uint64_t reconnects() const noexcept override { return 3; }
+  void stop() noexcept override { stopped.store(true); }
+  std::atomic<bool> stopped{false};
+
+ private:
+  std::int64_t t_us = 0;
+  SourceInfo info_;
+  SourceStats stats_;
+};
+}  // namespace
+
+// What the pipeline asks of every source, through the pacer: the inner source's state, stop() passed on, and each
+// chunk stamped with the host time it was released (the start of the latency figures).
+TEST(PacedSource, ForwardsStateAndStopAndStampsReleaseTimes) {
+  auto inner = std::make_unique<Device>();
+  Device* device = inner.get();
+  runtime::PacedSource paced(std::move(inner), 1000.0);
+  EXPECT_EQ(paced.connection(), SourceConnection::disconnected);
+  EXPECT_EQ(paced.reconnects(), 3u);
+  std::chrono::steady_clock::time_point previous{};
+  for (int i = 0; i < 3; ++i) {
+    const auto before = std::chrono::steady_clock::now();
+    const auto b = paced.next();
+    ASSERT_TRUE(b);
+    EXPECT_GE(b->read_at, before);
+    EXPECT_GE(b->read_at, previous);
+    previous = b->read_at;
+  }
+  paced.stop();
+  EXPECT_TRUE(device->stopped.load());
+  EXPECT_TRUE(paced.finished());
+  EXPECT_EQ(paced.next(), nullptr);
 }

@@ -572,4 +572,77 @@ TEST(StageRunner, IdleStageKeepsBeatingAndCancelStopsIt) {
   EXPECT_EQ(in.push(1), PushResult::dropped);  // abandoned
 }
 
+// ---- outlets: the same stage pushed to through a queue or driven in line ----
+
+/// Forwards each item (doubled) to its outlet; ticks are counted; throws on `throw_at` (in its step or its tick).
+class Forward final : public Stage<int> {
+ public:
+  void step(int&& v) override {
+    if (v == throw_at && !throw_in_tick) throw std::runtime_error("bad item " + std::to_string(v));
+    last = v;
+    if (out) out->push(2 * v);
+  }
+  void tick(Clock::time_point /*now*/) override {
+    ++ticks;
+    if (last == throw_at && throw_in_tick) throw std::runtime_error("tick after " + std::to_string(last));
+  }
+  Outlet<int>* out = nullptr;
+  int last = -1;
+  int ticks = 0;
+  int throw_at = -1;
+  bool throw_in_tick = false;
+};
+
+TEST(Outlet, QueueOutletPushesUnderTheQueuesPolicy) {
+  NamedQueue<int> q("q", 2, QueuePolicy::drop_newest);
+  QueueOutlet<int> out(q, nullptr);
+  EXPECT_EQ(out.push(1), PushResult::pushed);
+  EXPECT_EQ(out.push(2), PushResult::pushed);
+  EXPECT_EQ(out.push(3), PushResult::dropped);
+  int v = 0;
+  ASSERT_EQ(q.pop(v, 1ms), PopResult::item);
+  EXPECT_EQ(v, 1);
+}
+
+TEST(Outlet, InlineOutletStepsTicksAndCountsTheNextStage) {
+  StageMetrics m_a("a");
+  StageMetrics m_b("b");
+  Forward a;
+  Collect b;
+  InlineOutlet<int> to_b(m_b, b);
+  InlineOutlet<int> to_a(m_a, a);
+  a.out = &to_b;
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(to_a.push(int{i}), PushResult::pushed);
+  EXPECT_EQ(b.got, (std::vector<int>{0, 2, 4, 6, 8}));
+  EXPECT_EQ(a.ticks, 5);
+  const auto sa = m_a.snapshot();
+  EXPECT_EQ(sa.items_in, 5u);
+  EXPECT_EQ(sa.step_ns.count, 5u);
+  EXPECT_EQ(sa.heartbeat, 5u);
+  EXPECT_EQ(m_b.snapshot().items_in, 5u);
+}
+
+TEST(Outlet, InlineOutletNamesTheStageThatThrewInItsStepOrTick) {
+  for (const bool in_tick : {false, true}) {
+    SCOPED_TRACE(in_tick ? "tick" : "step");
+    StageMetrics m_a("a");
+    StageMetrics m_b("b");
+    Forward a;
+    Forward b;  // the one that fails
+    b.throw_at = 4;
+    b.throw_in_tick = in_tick;
+    InlineOutlet<int> to_b(m_b, b);
+    InlineOutlet<int> to_a(m_a, a);
+    a.out = &to_b;
+    to_a.push(1);
+    try {
+      to_a.push(2);  // b gets 4
+      ADD_FAILURE() << "no exception";
+    } catch (const StageFailure& e) {
+      EXPECT_EQ(e.stage(), "b");  // passed unchanged through a's outlet
+      EXPECT_EQ(std::string(e.what()), in_tick ? "tick after 4" : "bad item 4");
+    }
+  }
+}
+
 }  // namespace

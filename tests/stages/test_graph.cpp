@@ -1,9 +1,11 @@
-// The whole pipeline graph: replay equals the sequential FilteredStream + TimeSlicer output window by window,
+// The whole pipeline graph: a threaded replay equals Pipeline::run_sequential (the same stages on one thread) window
+// by window and count by count, and both equal FilteredStream + TimeSlicer run directly (an independent reference),
 // overload with the live policies, stage errors, shutdown within 1 s (also with full queues and from a signal
 // handler), and a fake camera unplugged and replugged under a running pipeline (libcaer stub).
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -11,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -128,8 +131,9 @@ std::unique_ptr<denoise::Filter> filter_for(const std::string& name, const Senso
 }
 
 /// The reference: the same stages driven on the calling thread (Pipeline::run_sequential), the windows they cut.
+/// `final_stats`: the statistics it ends with.
 std::vector<WindowRecord> sequential_windows(std::unique_ptr<EventSource> source, const std::string& filter_name,
-                                             PipelineOptions o) {
+                                             PipelineOptions o, PipelineStats* final_stats = nullptr) {
   RecordingProcessor processor;
   RecordingSink sink;
   o.mode = Mode::replay;
@@ -141,7 +145,37 @@ std::vector<WindowRecord> sequential_windows(std::unique_ptr<EventSource> source
   EXPECT_EQ(sink.samples.size(), processor.windows.size());
   for (std::size_t i = 0; i < sink.samples.size(); ++i) EXPECT_EQ(sink.samples[i].window_index, i);
   EXPECT_FALSE(p.stats().running);
+  if (final_stats) *final_stats = p.stats();
   return processor.windows;
+}
+
+/// The independent reference: the filter and the slicer alone, without the pipeline's stages.
+std::vector<WindowRecord> direct_windows(EventSource& source, const std::string& filter_name,
+                                         const PipelineOptions& o) {
+  std::vector<WindowRecord> out;
+  auto filter = filter_for(filter_name, source.info().geometry);
+  std::optional<denoise::FilteredStream> stream;
+  if (filter) stream.emplace(*filter);
+  TimeSlicer slicer({o.window_us, o.hop_us, std::nullopt}, [&](EventWindow&& w) {
+    out.push_back({w.t0_us, w.t1_us, w.starts_segment, w.contiguous()});
+  });
+  std::vector<EventBatch> kept;
+  while (auto b = source.next()) {
+    if (!stream) {
+      slicer.accept(b);
+      continue;
+    }
+    kept.clear();
+    stream->push(b, kept);
+    for (auto& k : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(k)));
+  }
+  if (stream) {
+    kept.clear();
+    stream->finish(kept);
+    for (auto& k : kept) slicer.accept(std::make_shared<const EventBatch>(std::move(k)));
+  }
+  slicer.flush();
+  return out;
 }
 
 // After the end every queue is empty and each item offered was either taken or dropped (counted).
@@ -179,8 +213,10 @@ bool wait_until(const std::function<bool()>& pred, std::chrono::milliseconds tim
 
 void replay_equals_sequential(const std::string& path, const std::string& filter, PipelineOptions o) {
   SCOPED_TRACE(path + " filter " + filter);
-  const auto want = sequential_windows(io::open_reader(path), filter, o);
+  PipelineStats want_stats;
+  const auto want = sequential_windows(io::open_reader(path), filter, o, &want_stats);
   ASSERT_GT(want.size(), 10u);
+  EXPECT_EQ(first_window_difference(want, direct_windows(*io::open_reader(path), filter, o)), "");
 
   auto source = io::open_reader(path);
   const auto geometry = source->info().geometry;
@@ -208,6 +244,23 @@ void replay_equals_sequential(const std::string& path, const std::string& filter
   }
   expect_queue_accounting(s);
   for (const auto& q : s.queues) EXPECT_EQ(q.dropped, 0u) << q.name;  // replay is lossless
+  // The sequential runner counts as the threads do (a lossless replay: the same items and events at every stage).
+  EXPECT_EQ(s.source.state, want_stats.source.state);
+  EXPECT_EQ(s.windows, want_stats.windows);
+  EXPECT_EQ(s.denoise_events_kept, want_stats.denoise_events_kept);
+  EXPECT_EQ(s.poses_published, want_stats.poses_published);
+  ASSERT_EQ(s.stages.size(), want_stats.stages.size());
+  for (std::size_t k = 0; k < s.stages.size(); ++k) {
+    const auto& a = s.stages[k];
+    const auto& b = want_stats.stages[k];
+    SCOPED_TRACE("stage " + a.name);
+    EXPECT_EQ(a.state, b.state);
+    EXPECT_EQ(a.items_in, b.items_in);
+    EXPECT_EQ(a.items_out, b.items_out);
+    EXPECT_EQ(a.events_in, b.events_in);
+    EXPECT_EQ(a.events_out, b.events_out);
+    EXPECT_EQ(a.items_dropped, b.items_dropped);
+  }
   for (const auto& st : s.stages) {
     EXPECT_EQ(st.state, StageState::finished) << st.name;
     EXPECT_EQ(st.items_dropped, 0u) << st.name;
@@ -295,11 +348,19 @@ TEST(PipelineGraph, StatisticsCarryTheFiltersFiguresWhileRunning) {
 TEST(PipelineGraph, ClockSegmentsAreWindowedAsSequentially) {
   const std::uint32_t seed = 7;
   SCOPED_TRACE("seed " + std::to_string(seed));
-  const auto batches = synthetic(seed, 300, 500, 3);
+  // Each batch stamped with its own read time (its index + 1 ms on the steady clock's epoch).
+  std::vector<EventBatchPtr> batches;
+  for (const auto& b : synthetic(seed, 300, 500, 3)) {
+    auto stamped = std::make_shared<EventBatch>(*b);
+    stamped->read_at = Clock::time_point(std::chrono::milliseconds(batches.size() + 1));
+    batches.push_back(std::move(stamped));
+  }
   PipelineOptions o;
   o.window_us = 5'000;
   o.hop_us = 2'500;
   const auto want = sequential_windows(std::make_unique<VectorSource>(batches), "baf", o);
+  VectorSource reference(batches);
+  EXPECT_EQ(first_window_difference(want, direct_windows(reference, "baf", o)), "");
   RecordingProcessor processor;
   RecordingSink sink;
   Pipeline p(std::make_unique<VectorSource>(batches), filter_for("baf", kDavis346), processor, sink, o);
@@ -308,8 +369,25 @@ TEST(PipelineGraph, ClockSegmentsAreWindowedAsSequentially) {
   int segments = 0;
   for (const auto& w : processor.windows) segments += w.starts_segment ? 1 : 0;
   EXPECT_EQ(segments, 3);
-  // Read times map into the right segment: never after the window was emitted.
-  for (const auto& s : sink.samples) EXPECT_LE(s.newest_event_read, s.window_ready);
+  // A window's read time is that of the input batch holding its newest (kept) event, in the window's own clock
+  // segment (times repeat across segments: 100 batches each).
+  ASSERT_EQ(sink.samples.size(), processor.windows.size());
+  int segment = -1;
+  for (std::size_t i = 0; i < processor.windows.size(); ++i) {
+    const auto& w = processor.windows[i];
+    if (w.starts_segment) ++segment;
+    ASSERT_FALSE(w.events.empty());
+    const Event& newest = w.events.back();
+    std::optional<Clock::time_point> read_at;
+    for (std::size_t b = 100 * static_cast<std::size_t>(segment); b < 100 * static_cast<std::size_t>(segment + 1);
+         ++b) {
+      const auto& ev = batches[b]->events;
+      if (std::find(ev.begin(), ev.end(), newest) != ev.end()) read_at = batches[b]->read_at;
+    }
+    ASSERT_TRUE(read_at) << "window " << i;
+    EXPECT_EQ(sink.samples[i].newest_event_read, *read_at) << "window " << i;
+    EXPECT_LE(sink.samples[i].newest_event_read, sink.samples[i].window_ready);
+  }
 }
 
 // ---- errors ----
@@ -333,6 +411,54 @@ TEST(PipelineGraph, AStageErrorStopsThePipelineWithTheReason) {
   EXPECT_EQ(sink.samples.size(), 5u);  // the windows before the failing one were published
   ASSERT_FALSE(sink.stats.empty());
   EXPECT_EQ(sink.stats.back().error, *error);
+}
+
+// The sequential runner reports the stage that threw as the threads do (the reference of the graph tests must fail
+// the same way), and the pipeline can still be joined and destroyed after it.
+TEST(PipelineGraph, RunSequentialNamesTheStageThatFailed) {
+  const auto batches = synthetic(11, 400, 500);
+  RecordingProcessor processor;
+  processor.throw_at = 5;
+  RecordingSink sink;
+  Pipeline p(std::make_unique<VectorSource>(batches), nullptr, processor, sink);
+  const auto error = p.run_sequential();
+  ASSERT_TRUE(error);
+  EXPECT_EQ(*error, "pose: estimator exploded at window 5");
+  const auto s = p.stats();
+  EXPECT_EQ(s.stages[1].state, StageState::finished);
+  EXPECT_EQ(s.stages[2].state, StageState::failed);
+  EXPECT_EQ(s.source.state, SourceState::stopped);
+  EXPECT_FALSE(s.running);
+  EXPECT_EQ(sink.samples.size(), 5u);
+  ASSERT_FALSE(sink.stats.empty());
+  EXPECT_EQ(sink.stats.back().error, *error);
+  EXPECT_TRUE(p.wait_for(0ns));
+  p.join();  // nothing to join; the destructor after it neither hangs nor throws
+}
+
+/// A publish stage whose statistics cannot go out (the first periodic publish_stats throws).
+class StatsFailingSink final : public PoseSink {
+ public:
+  void publish_pose(const PoseSample& /*s*/) override {}
+  void publish_stats(const PipelineStats& /*s*/) override {
+    if (calls_++ == 0) throw std::runtime_error("stats link down");
+  }
+
+ private:
+  int calls_ = 0;
+};
+
+TEST(PipelineGraph, AFailingStatisticsPublishIsThePublishStagesErrorThreadedOrSequential) {
+  for (const bool sequential : {false, true}) {
+    SCOPED_TRACE(sequential ? "sequential" : "threaded");
+    RecordingProcessor processor;
+    StatsFailingSink sink;
+    Pipeline p(std::make_unique<VectorSource>(synthetic(12, 40, 500)), nullptr, processor, sink);
+    const auto error = sequential ? p.run_sequential() : p.run();
+    ASSERT_TRUE(error);
+    EXPECT_EQ(*error, "publish: stats link down");
+    EXPECT_EQ(p.stats().stages[3].state, StageState::failed);
+  }
 }
 
 class ThrowingSource final : public EventSource {

@@ -125,8 +125,9 @@ class DenoiseStage final : public Stage<EventBatchPtr> {
 
   void emit(EventWindow&& w) {
     const auto now = Clock::now();
-    // The newest event's batch; an empty window (nothing kept) was completed by time: the batch that brought its
-    // end. A source that does not stamp its batches: the window's completion.
+    // The newest event's batch; an empty window (nothing kept) was completed by time: the input batch being
+    // processed when it was cut (with a look-ahead filter, later than the one that brought its end). A source that
+    // does not stamp its batches: the window's completion.
     auto read_at = w.owners.empty() ? input_read_at_ : w.owners.back()->read_at;
     if (read_at == Clock::time_point{}) read_at = now;
     const std::size_t n = w.size();
@@ -569,6 +570,8 @@ std::optional<std::string> Pipeline::run_sequential() {
       s.fail_in_line(e);
     } catch (const std::exception& e) {
       s.fail_in_line(StageFailure(s.m_denoise.name(), e.what()));
+    } catch (...) {
+      s.fail_in_line(StageFailure(s.m_denoise.name(), "unknown exception"));
     }
   }
   for (StageMetrics* m : {&s.m_denoise, &s.m_pose, &s.m_publish}) {

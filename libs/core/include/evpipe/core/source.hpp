@@ -55,12 +55,15 @@ class EventSource {
   [[nodiscard]] virtual const SourceStats& stats() const = 0;
   /// Fraction of the input consumed, in [0, 1], when known (files); nullopt for live sources.
   [[nodiscard]] virtual std::optional<double> progress() const { return std::nullopt; }
-  /// Is the device there? Any thread (a wrapper forwards its inner source's).
+  /// Is the device there? On the thread that calls next() (DavisSource's state is not synchronised); a wrapper
+  /// forwards its inner source's.
   [[nodiscard]] virtual SourceConnection connection() const noexcept { return SourceConnection::connected; }
-  /// Times a disconnected device came back. Any thread.
+  /// Times a disconnected device came back. On the thread that calls next(), as connection().
   [[nodiscard]] virtual std::uint64_t reconnects() const noexcept { return 0; }
-  /// Ends a wait inside next() at once (a paced replay's sleep) and makes the source end: next() returns nullptr and
-  /// finished() true from then on. Lock-free, any thread, safe from a signal handler. Default: nothing waits.
+  /// Ends a wait inside next() at once (a paced replay's sleep): a source that overrides it then ends (next()
+  /// returns nullptr, finished() true). Lock-free, any thread, safe from a signal handler; a wrapper forwards it.
+  /// Default: nothing (the source never waits, e.g. the file readers and the non-blocking DavisSource; the
+  /// pipeline's own stop flag ends its reading).
   virtual void stop() noexcept {}
 };
 

@@ -149,7 +149,8 @@ class PoseEstimator {
   void reset();
 
   // Initialisation elsewhere. process() runs an attempt on the window that needs one and returns when it is
-  // done (50-500 ms); a caller that must keep publishing meanwhile splits it (PoseStage with a worker thread):
+  // done (50-500 ms); a caller that must keep publishing meanwhile splits it (stages::PoseProcessor with a worker
+  // thread):
   //   needs_initialisation() -> prepare_initialisation(window) -> run_initialisation(job) on the worker,
   //   initialising_window(window) for each window while it runs, complete_initialisation(outcome, window) once
   //   it is done. Every call except run_initialisation counts as one window.

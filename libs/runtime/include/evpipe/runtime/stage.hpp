@@ -127,7 +127,8 @@ class StageFailure : public std::runtime_error {
 
 /// Runs the next stage's step at once on the calling thread, counted and timed in its metrics as its runner would
 /// (items_in, step_ns, heartbeat), then its tick(). Never drops. The time of a step includes the steps it pushed
-/// to (nested). Throws StageFailure when the step throws.
+/// to (nested). Throws StageFailure naming the next stage when its step or tick throws (as StageRunner reports
+/// both as that stage's error).
 template <class T>
 class InlineOutlet final : public Outlet<T> {
  public:
@@ -135,17 +136,19 @@ class InlineOutlet final : public Outlet<T> {
   PushResult push(T&& item) override {
     detail::bump(metrics_.heartbeat);
     detail::bump(metrics_.items_in);
-    const auto t0 = Clock::now();
     try {
+      const auto t0 = Clock::now();
       next_.step(std::move(item));
+      const auto now = Clock::now();
+      metrics_.step_ns.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, (now - t0).count())));
+      next_.tick(now);
     } catch (const StageFailure&) {
       throw;
     } catch (const std::exception& e) {
       throw StageFailure(metrics_.name(), e.what());
+    } catch (...) {
+      throw StageFailure(metrics_.name(), "unknown exception");
     }
-    const auto now = Clock::now();
-    metrics_.step_ns.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, (now - t0).count())));
-    next_.tick(now);
     return PushResult::pushed;
   }
 

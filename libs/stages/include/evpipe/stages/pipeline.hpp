@@ -180,8 +180,10 @@ class Pipeline {
   std::optional<std::string> run();
   /// Instead of start(): runs the same stages on the calling thread until the source ends, a stage throws or
   /// request_stop(): each batch goes through denoise, each window it completes through pose and publish at once
-  /// (no queue, nothing dropped, whatever the mode), statistics once at the end. The poses are those of a replay
-  /// through start()/join(), deterministically. Returns error().
+  /// (no queue, nothing dropped, whatever the mode); statistics after a pose at most every stats_period (as the
+  /// publish thread's tick) and once at the end. The poses are those of a replay through start()/join(),
+  /// deterministically unless the processor itself runs threads (PoseProcessor's init_worker). A step's time in the
+  /// stage statistics includes the steps after it (nested). Returns error().
   std::optional<std::string> run_sequential();
 
   /// Any thread, any time.
