@@ -37,12 +37,13 @@ void FilteredStream::collect(std::vector<EventBatch>& out) {
     if (on_decided_) {
       on_decided_(DecidedSegment{b, front_decided_, count, decisions_, taken_});
     }
+    const std::size_t kept_before = kept.events.size();
     for (std::size_t i = 0; i < count; ++i) {
       if (decisions_.keep[taken_ + i] == 0) continue;
-      kept.read_at = b.read_at;  // of the input batch holding the newest kept event
       kept.events.push_back(b.events[front_decided_ + i]);
       if (b.labelled()) kept.labels.push_back(b.labels[front_decided_ + i]);
     }
+    if (kept.events.size() > kept_before) kept.read_at = b.read_at;  // the input batch holding the newest kept event
     taken_ += count;
     front_decided_ += count;
     pending_events_ -= count;
