@@ -56,6 +56,13 @@ PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model
   if (model_.segments_m.size() < 4)
     throw std::invalid_argument(
         fmt::format("line model '{}' has {} segments; OPnL needs at least 4", model_.name, model_.segments_m.size()));
+  // The model's partial symmetries, once: initialisation and every tracking update compare the pose with the pose
+  // turned by each (verification.hpp, "Symmetric alternatives").
+  if (options_.compare_symmetries) {
+    const std::vector<camera::Pose> symmetries = model_symmetries(model_);
+    if (options_.init.verification.symmetries.empty()) options_.init.verification.symmetries = symmetries;
+    if (options_.track.verification.symmetries.empty()) options_.track.verification.symmetries = symmetries;
+  }
 }
 
 void PoseEstimator::reset() {

@@ -77,6 +77,12 @@ struct EstimatorOptions {
   /// unseen, or something else moves) that end a hold: lost.
   int hold_contradicted_windows = 10;
 
+  /// Compare every initial and tracked pose with the pose turned by the model's partial symmetries
+  /// (model_symmetries(), filled into init.verification / track.verification when they list none): a pose whose
+  /// symmetric alternative explains the window better is refused, and without a prior an initial pose whose
+  /// alternative it cannot rule out is refused too.
+  bool compare_symmetries = true;
+
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
 };
