@@ -129,20 +129,49 @@ namespace {
 struct Alternative {
   camera::Pose T;
   std::optional<camera::Pose> before;
+  std::optional<camera::Pose> S;  ///< the model-frame motion (T * S), when T's is the model's symmetry
 };
+
+// Which segments a model-frame motion S maps onto a segment (both ends within 0.5 % of the model's extent, as
+// model_symmetries), and which segments are such an image: those draw the same image under T and T * S.
+void mapped_segments(const camera::LineModel& model, const camera::Pose& S, std::vector<bool>& mapped,
+                     std::vector<bool>& image) {
+  const auto& segs = model.segments_m;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+  for (const auto& g : segs) {
+    lo = lo.cwiseMin(g.a_m).cwiseMin(g.b_m);
+    hi = hi.cwiseMax(g.a_m).cwiseMax(g.b_m);
+  }
+  const double tol = 0.005 * (hi - lo).norm();
+  mapped.assign(segs.size(), false);
+  image.assign(segs.size(), false);
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    const Eigen::Vector3d a = S.apply(segs[i].a_m), b = S.apply(segs[i].b_m);
+    for (std::size_t j = 0; j < segs.size(); ++j) {
+      if (((a - segs[j].a_m).norm() <= tol && (b - segs[j].b_m).norm() <= tol) ||
+          ((a - segs[j].b_m).norm() <= tol && (b - segs[j].a_m).norm() <= tol)) {
+        mapped[i] = true;
+        image[j] = true;
+        break;
+      }
+    }
+  }
+}
 
 // The cells of the visible segments of pose T (segments with fewer than min_cells in view dropped), with the
 // normal motion from the earlier pose `before` scaled by motion_scale; their bands are marked as the model's when
 // `mark`.
 std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera, const camera::LineModel& model,
                               const camera::Pose& T, const VerifyOptions& o, double motion_scale,
-                              const camera::Pose* before, bool mark) {
+                              const camera::Pose* before, bool mark, bool count = true,
+                              const std::vector<bool>* segments = nullptr) {
   const auto inside = [&](const Eigen::Vector2d& p) {
     return p.x() >= o.border_px && p.y() >= o.border_px && p.x() <= camera.width - 1 - o.border_px &&
            p.y() <= camera.height - 1 - o.border_px;
   };
   std::vector<Cell> cells;
   for (std::size_t i = 0; i < model.segments_m.size(); ++i) {
+    if (segments && !(*segments)[i]) continue;
     const Eigen::Vector3d A = model.segments_m[i].a_m, B = model.segments_m[i].b_m;
     const Eigen::Vector3d Ac = T.apply(A), Bc = T.apply(B);
     if (!(Ac.z() > kNear_m) && !(Bc.z() > kNear_m)) continue;
@@ -168,7 +197,7 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
       c.n_px = Eigen::Vector2d(-d.y(), d.x()).normalized();
       c.p_px = *p;
       c.q_px = *q;
-      c.counts = img.cell(*p, *q, o, mark);
+      if (count) c.counts = img.cell(*p, *q, o, mark);
       if (motion_scale > 0.0 && before) {
         const auto m0 = camera.project(before->apply(c.P_m));
         const auto m1 = camera.project(T.apply(c.P_m));
@@ -197,17 +226,32 @@ double segment_distance(const Eigen::Vector2d& x, const Eigen::Vector2d& a, cons
   return (x - a - t * d).norm();
 }
 
-// Cells of `mine` that no cell of `other` comes near (their middles farther than `near_px` from it).
-std::vector<bool> only_in(const std::vector<Cell>& mine, const std::vector<Cell>& other, double near_px) {
+// The pixels within near_px of any of the cells (a cell's box each).
+std::vector<std::uint8_t> near_mask(const std::vector<Cell>& cells, double near_px, int width, int height) {
+  std::vector<std::uint8_t> near(static_cast<std::size_t>(width) * height, 0);
+  for (const Cell& c : cells) {
+    const int xa = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.x(), c.q_px.x()) - near_px)));
+    const int xb = std::min(width - 1, static_cast<int>(std::ceil(std::max(c.p_px.x(), c.q_px.x()) + near_px)));
+    const int ya = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.y(), c.q_px.y()) - near_px)));
+    const int yb = std::min(height - 1, static_cast<int>(std::ceil(std::max(c.p_px.y(), c.q_px.y()) + near_px)));
+    for (int y = ya; y <= yb; ++y) {
+      for (int x = xa; x <= xb; ++x) {
+        if (segment_distance(Eigen::Vector2d(x, y), c.p_px, c.q_px) <= near_px) {
+          near[static_cast<std::size_t>(y) * width + x] = 1;
+        }
+      }
+    }
+  }
+  return near;
+}
+
+// Cells of `mine` whose middles (to the pixel) are not in the mask of another pose's cells (near_mask).
+std::vector<bool> only_in(const std::vector<Cell>& mine, const std::vector<std::uint8_t>& near, int width, int height) {
   std::vector<bool> out(mine.size(), true);
   for (std::size_t i = 0; i < mine.size(); ++i) {
     const Eigen::Vector2d m = 0.5 * (mine[i].p_px + mine[i].q_px);
-    for (const Cell& c : other) {
-      if (segment_distance(m, c.p_px, c.q_px) <= near_px) {
-        out[i] = false;
-        break;
-      }
-    }
+    const int x = static_cast<int>(std::lround(m.x())), y = static_cast<int>(std::lround(m.y()));
+    if (x >= 0 && y >= 0 && x < width && y < height && near[static_cast<std::size_t>(y) * width + x]) out[i] = false;
   }
   return out;
 }
@@ -402,11 +446,26 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
   if ((res.ok || compare_always) && !alternatives.empty()) {
     const double alpha = std::clamp(o.false_alarm, 1e-6, 0.5);
     const double near_px = o.band_px + o.side_gap_px + o.side_width_px;
+    const std::vector<std::uint8_t> near_mine = near_mask(cells, near_px, camera.width, camera.height);
     for (std::size_t a = 0; a < alternatives.size(); ++a) {
       const Alternative& alt = alternatives[a];
-      const std::vector<Cell> other =
-          build_cells(img, camera, model, alt.T, o, motion_scale, alt.before ? &*alt.before : nullptr, false);
-      std::vector<bool> other_supported(other.size());
+      // The alternative's cells placed first; events are counted only on those where it differs from T. For a
+      // symmetry S of the model, the segments S maps onto segments draw exactly T's cells of their images: only
+      // the others are placed, and T's cells on those images are shared.
+      std::vector<bool> mapped, image;
+      if (alt.S) mapped_segments(model, *alt.S, mapped, image);
+      std::vector<bool> unmapped(mapped.size());
+      for (std::size_t i = 0; i < mapped.size(); ++i) unmapped[i] = !mapped[i];
+      std::vector<Cell> other =
+          build_cells(img, camera, model, alt.T, o, motion_scale, alt.before ? &*alt.before : nullptr, false, false,
+                      alt.S ? &unmapped : nullptr);
+      const std::vector<bool> other_only = only_in(other, near_mine, camera.width, camera.height);
+      std::vector<bool> mine_only =
+          only_in(cells, near_mask(other, near_px, camera.width, camera.height), camera.width, camera.height);
+      if (alt.S) {
+        for (std::size_t k = 0; k < cells.size(); ++k) mine_only[k] = mine_only[k] && !image[cells[k].segment];
+      }
+      std::vector<bool> other_supported(other.size(), false);
       std::vector<double> other_expected(other.size());
       for (std::size_t b = 0; b < other.size();) {
         std::size_t e = b;
@@ -415,16 +474,18 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         const double nm = motion_sum / static_cast<double>(e - b);
         const double share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * nm : rate);
         for (std::size_t k = b; k < e; ++k) {
-          other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
+          if (other_only[k]) {
+            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false);
+            other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
+          }
           other_expected[k] = share;
         }
         b = e;
       }
       PoseComparison cmp;
-      const double la = cells_log_ratio(only_in(cells, other, near_px), supported, expected, alpha, cmp.cells_a_only,
-                                        cmp.supported_a_only);
-      const double lb = cells_log_ratio(only_in(other, cells, near_px), other_supported, other_expected, alpha,
-                                        cmp.cells_b_only, cmp.supported_b_only);
+      const double la = cells_log_ratio(mine_only, supported, expected, alpha, cmp.cells_a_only, cmp.supported_a_only);
+      const double lb =
+          cells_log_ratio(other_only, other_supported, other_expected, alpha, cmp.cells_b_only, cmp.supported_b_only);
       cmp.log_ratio = la - lb;
       if (comparisons) comparisons->push_back(cmp);
       if (cmp.log_ratio < res.symmetry_log_ratio) {
@@ -453,7 +514,7 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
                          const camera::Pose& T, const VerifyOptions& o, const std::optional<MotionHint>& motion) {
   std::vector<Alternative> alternatives;
   for (const camera::Pose& S : o.symmetries) {
-    alternatives.push_back({T * S, motion ? std::optional<camera::Pose>(motion->before.pose * S) : std::nullopt});
+    alternatives.push_back({T * S, motion ? std::optional<camera::Pose>(motion->before.pose * S) : std::nullopt, S});
   }
   return verify_core(events, camera, model, T, o, motion, alternatives, nullptr, false);
 }
@@ -463,7 +524,7 @@ PoseComparison compare_poses(EventSpan events, const camera::CameraModel& camera
                              const std::optional<MotionHint>& motion_a, const std::optional<MotionHint>& motion_b) {
   std::vector<PoseComparison> out;
   const std::vector<Alternative> alternatives{
-      {B, motion_b ? std::optional<camera::Pose>(motion_b->before.pose) : std::nullopt}};
+      {B, motion_b ? std::optional<camera::Pose>(motion_b->before.pose) : std::nullopt, std::nullopt}};
   (void)verify_core(events, camera, model, A, o, motion_a, alternatives, &out, true);
   return out.empty() ? PoseComparison{} : out.front();
 }
