@@ -250,3 +250,62 @@ TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
   }
 }
 INSTANTIATE_TEST_SUITE_P(Sequences, RealBoard, ::testing::Values("seq_0001", "seq_0003"));
+
+// The partial symmetries of the two bundled models: the board's outline is mapped onto itself by the 180 deg turns
+// about its three axes (the inner marks are not); the roadheader's body box by the turns about its own centre.
+TEST(PoseVerify, ModelSymmetriesOfTheBundledModels) {
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  const auto planar = camera::load_line_model((cfg / "target-planar.yaml").string());
+  const auto S = pose::model_symmetries(planar);
+  ASSERT_EQ(S.size(), 3u);
+  for (const camera::Pose& s : S) {
+    EXPECT_NEAR(camera::rotation_angle_deg(s, camera::Pose{}), 180.0, 1e-6);
+    EXPECT_LT(s.t_cam_model_m.norm(), 1e-9);  // about the outline's centre, the model's origin
+  }
+  const auto rh = camera::load_line_model((cfg / "roadheader-wireframe.yaml").string());
+  const auto R = pose::model_symmetries(rh);
+  ASSERT_FALSE(R.empty());
+  bool box_turn = false;  // 180 deg about y through the body box's centre (0.3, 0, 0.1) m
+  for (const camera::Pose& s : R) {
+    const Eigen::Vector3d c(0.3, 0.0, 0.1);
+    box_turn = box_turn || ((s.apply(c) - c).norm() < 1e-6 && std::abs(std::abs(s.q_cam_model.y()) - 1.0) < 1e-6);
+  }
+  EXPECT_TRUE(box_turn);
+  for (const camera::Pose& s : R) EXPECT_GT(camera::rotation_angle_deg(s, camera::Pose{}), 1.0);
+}
+
+// Without a prior the board's search can stop on the board seen from behind (turned 180 deg about an in-plane axis:
+// its outline and top bar on the true ones, only the inner marks elsewhere). Seeded windows (0.8 m, 1 Hz/px) where
+// the initialiser without the symmetry comparison returns that flip (seed 2: 4 windows; seed 3: 1): with it, the
+// pose is the true one (seed 2) or none (seed 3: the inner marks hardly fire, the two are alike), never the flip.
+TEST(PoseVerify, PlanarFlipWithoutPriorIsRefusedOrCorrected) {
+  int flips = 0, corrected = 0, refused = 0;
+  for (const std::uint64_t seed : {2u, 3u}) {
+    const Scene s("target-planar.yaml", 0.8, seed, 400'000, 1.0);
+    for (std::int64_t t = 45'000; t + 15'000 <= 400'000; t += 90'000) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << ", window at " << t);
+      const camera::Pose truth = *camera::interpolate(s.scene.trajectory, t);
+      const EventSpan w = slice(s.events, t - 15'000, t + 15'000);
+      const pose::InitialiserOptions plain;
+      const auto before = pose::initialise_pose(w, s.scene.camera, s.scene.model, std::nullopt, plain);
+      pose::InitialiserOptions with = plain;
+      with.verification.symmetries = pose::model_symmetries(s.scene.model);
+      const auto after = pose::initialise_pose(w, s.scene.camera, s.scene.model, std::nullopt, with);
+      const bool flip = before.ok && camera::rotation_angle_deg(before.T_cam_model, truth) > 170.0 &&
+                        camera::translation_distance_m(before.T_cam_model, truth) < 0.2;
+      if (!flip) continue;
+      ++flips;
+      if (!after.ok) {
+        ++refused;
+        EXPECT_NE(after.message.find("ambiguous"), std::string::npos) << after.message;
+        continue;
+      }
+      ++corrected;
+      EXPECT_LT(camera::rotation_angle_deg(after.T_cam_model, truth), 2.0);
+      EXPECT_LT(camera::translation_distance_m(after.T_cam_model, truth), 0.02);
+    }
+  }
+  EXPECT_EQ(flips, 5);  // the case exists on these seeds
+  EXPECT_EQ(corrected, 4);
+  EXPECT_EQ(refused, 1);
+}

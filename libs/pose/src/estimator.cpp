@@ -39,6 +39,8 @@ void EstimatorOptions::validate() const {
         fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
                     "got {} / {}",
                     s.significance, s.max_motion_px));
+  if (confirm_windows < 0)
+    throw std::invalid_argument(fmt::format("pose.confirm_windows: must be >= 0, got {}", confirm_windows));
   if (!(hold_entry_max_motion_px >= 0.0) || hold_contradicted_windows < 1)
     throw std::invalid_argument(
         fmt::format("pose hold: hold_entry_max_motion_px must be >= 0 and hold_contradicted_windows >= 1, got {} / {}",
@@ -56,6 +58,13 @@ PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model
   if (model_.segments_m.size() < 4)
     throw std::invalid_argument(
         fmt::format("line model '{}' has {} segments; OPnL needs at least 4", model_.name, model_.segments_m.size()));
+  // The model's partial symmetries, once: initialisation and every tracking update compare the pose with the pose
+  // turned by each (verification.hpp, "Symmetric alternatives").
+  if (options_.compare_symmetries) {
+    const std::vector<camera::Pose> symmetries = model_symmetries(model_);
+    if (options_.init.verification.symmetries.empty()) options_.init.verification.symmetries = symmetries;
+    if (options_.track.verification.symmetries.empty()) options_.track.verification.symmetries = symmetries;
+  }
 }
 
 void PoseEstimator::reset() {
@@ -214,6 +223,8 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
   publish_update(u, out);
   out.t_last_update_us = outcome.t_us;
   out.initialised_now = true;
+  track_.confirmed = track_.healthy_in_a_row >= options_.confirm_windows;
+  unconfirmed(out);
   return out;
 }
 
@@ -319,7 +330,7 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
     out.window_events = used;
     out.note = why;
   }
-  if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking) {
+  if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking && track_.confirmed) {
     // Unhealthy: a still target (no events to measure it on) or a lost one? Decided on the last good pose.
     TrackState after = std::move(track_);
     track_ = before;
@@ -339,7 +350,15 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
   counters_.unhealthy_updates += unhealthy;
   if (track_.lost) set_status(TrackStatus::lost);
   out.status = status_;
+  unconfirmed(out);
   return out;
+}
+
+void PoseEstimator::unconfirmed(PoseEstimate& out) const {
+  if (!out.pose_valid || out.status != TrackStatus::tracking || track_.confirmed) return;
+  out.pose_valid = false;
+  out.note = fmt::format("initialised: {} of {} healthy updates in a row before the track is published",
+                         track_.healthy_in_a_row, options_.confirm_windows);
 }
 
 PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std::int64_t t_end_us, EventSpan history,
@@ -359,6 +378,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
                                     camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
   if (u.healthy && !jumped) {
     state.unhealthy_in_a_row = 0;
+    if (++state.healthy_in_a_row >= options_.confirm_windows) state.confirmed = true;
     state.previous = state.last;
     state.last = camera::StampedPose{t_end_us, u.T_cam_model};
     state.previous_update = std::move(state.last_update);
@@ -369,6 +389,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
     out.t_last_update_us = state.last->t_us;
     ++unhealthy;
     ++state.unhealthy_in_a_row;
+    state.healthy_in_a_row = 0;
     out.T_cam_model = state.last->pose;  // hold the last good pose; not published as valid
     out.inliers = u.inliers;
     out.sigma_px = u.sigma_px;
@@ -386,12 +407,16 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
 }
 
 PoseEstimator::TrackState PoseEstimator::start_state(const InitOutcome& outcome) {
-  return TrackState{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model},
-                    outcome.previous,
-                    0,
-                    false,
-                    outcome.polished,
-                    std::nullopt};
+  TrackState state{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model},
+                   outcome.previous,
+                   0,
+                   false,
+                   outcome.polished,
+                   std::nullopt};
+  // Advanced on the worker: handed over from a healthy last slice; the slices' healthy updates count (as if in a
+  // row: the handover needs the last one healthy, and an unhealthy one among them is rare).
+  state.healthy_in_a_row = outcome.caught_up_slices - static_cast<int>(outcome.caught_up_unhealthy);
+  return state;
 }
 
 int PoseEstimator::catch_up(TrackState& state, std::int64_t from_us, std::int64_t to_us, EventSpan events,

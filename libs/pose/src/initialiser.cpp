@@ -369,37 +369,44 @@ class Search {
     sorted.reserve(poses.size());
     for (const std::size_t i : order) sorted.push_back(poses[i]);
     poses = std::move(sorted);
-    // The re-solve on all inliers: OPnL, then LM (line_refine.hpp) with a Huber loss so that one wrong
+    // The re-solve on all inliers (refine()): OPnL, then LM (line_refine.hpp) with a Huber loss so that one wrong
     // association cannot pull the pose.
-    OpnlOptions full;
-    full.refine_options.loss = RefineOptions::Loss::huber;
-    full.refine_options.loss_scale_n = o_.refine_huber_px / (0.5 * (cam_.fx + cam_.fy));
     std::optional<Scored> best;
     for (std::size_t k = 0; k < std::min(poses.size(), o_.refine_candidates); ++k) {
       if (2 * poses[k].explained < poses[0].explained) break;  // far behind the best: not worth a re-solve
-      Scored cur = poses[k];
-      cur.correspondences = 0;
-      for (int round = 0; round < o_.refine_rounds; ++round) {
-        const auto inl = inliers(cur.T);
-        if (inl.size() < 4 || !two_directions(inl)) break;
-        const OpnlResult r = solve_opnl(correspondences(inl), full);
-        if (!r.ok || !acceptable(r.T_cam_model)) break;
-        const std::size_t ex = support_.explained(r.T_cam_model, model_);
-        if (ex < cur.explained && cur.correspondences > 0) break;
-        cur = {r.T_cam_model, ex, inl.size()};
-      }
-      if (cur.correspondences == 0) cur.correspondences = inliers(cur.T).size();
-      // Ranked by the verification first (verification.hpp: support along every segment, beating the scene's
-      // other structure), then by explained events: events near the model alone favour a pose that lays its lines
-      // over any strong structure (a monitor's border 1.45x a board: every outer segment on an edge, the inner ones
-      // over the board's own grid).
-      const VerifyResult v = verify_pose(events_, cam_, model_, cur.T, o_.verification);
-      cur.verified = v.ok;
-      cur.supported_cells = v.cells_supported;
+      const Scored cur = refine(poses[k]);
       if (!best || better(cur, *best)) best = cur;
     }
     return best;
   }
+
+  // Re-association and re-solve on all inliers, then the verification.
+  Scored refine(Scored cur) {
+    OpnlOptions full;
+    full.refine_options.loss = RefineOptions::Loss::huber;
+    full.refine_options.loss_scale_n = o_.refine_huber_px / (0.5 * (cam_.fx + cam_.fy));
+    cur.correspondences = 0;
+    for (int round = 0; round < o_.refine_rounds; ++round) {
+      const auto inl = inliers(cur.T);
+      if (inl.size() < 4 || !two_directions(inl)) break;
+      const OpnlResult r = solve_opnl(correspondences(inl), full);
+      if (!r.ok || !acceptable(r.T_cam_model)) break;
+      const std::size_t ex = support_.explained(r.T_cam_model, model_);
+      if (ex < cur.explained && cur.correspondences > 0) break;
+      cur = {r.T_cam_model, ex, inl.size()};
+    }
+    if (cur.correspondences == 0) cur.correspondences = inliers(cur.T).size();
+    // Ranked by the verification first (verification.hpp: support along every segment, beating the scene's
+    // other structure), then by explained events: events near the model alone favour a pose that lays its lines
+    // over any strong structure (a monitor's border 1.45x a board: every outer segment on an edge, the inner ones
+    // over the board's own grid).
+    const VerifyResult v = verify_pose(events_, cam_, model_, cur.T, o_.verification);
+    cur.verified = v.ok;
+    cur.supported_cells = v.cells_supported;
+    return cur;
+  }
+
+  [[nodiscard]] std::size_t explained(const camera::Pose& T) { return support_.explained(T, model_); }
 
   // Inlier correspondences of a pose: each detected line with the closest projected model segment within the
   // gates (angle, both endpoints' distance, overlap).
@@ -688,8 +695,49 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
         best->correspondences, best->explained, 100.0 * share, 100.0 * options.min_explained_share);
     return res;
   }
+  // The model's partial symmetries (verification.hpp): the pose turned by one shares most of its image with the
+  // pose, and the search may stop on either (the board seen from behind: its outline and top bar on the true ones,
+  // only the inner marks elsewhere). Each alternative inside the prior's tolerance (with a prior the others are
+  // excluded by it) is compared on the cells where the two differ: one that explains the events clearly better
+  // replaces the pose (refined like the candidates, and verified); one that cannot be ruled out refuses it.
+  Scored chosen = *best;
+  for (int pass = 0; pass < 2; ++pass) {
+    bool switched = false;
+    for (std::size_t k = 0; k < options.verification.symmetries.size() && !switched; ++k) {
+      const camera::Pose alt = chosen.T * options.verification.symmetries[k];
+      if (!search.acceptable(alt)) continue;
+      const PoseComparison cmp = compare_poses(events, camera, model, chosen.T, alt, options.verification);
+      const double level = symmetry_decision_log_ratio(options.verification);
+      if (cmp.log_ratio >= level) continue;
+      if (cmp.log_ratio > -level) {
+        res.message = fmt::format(
+            "the pose and the pose turned by the model's symmetry {} explain the events alike (log-likelihood ratio "
+            "{:.1f} on {} + {} cells where they differ): ambiguous",
+            k, cmp.log_ratio, cmp.cells_a_only, cmp.cells_b_only);
+        return res;
+      }
+      Scored other = search.refine(Scored{alt, search.explained(alt), 0});
+      if (!other.verified ||
+          compare_poses(events, camera, model, other.T, chosen.T, options.verification).log_ratio < level) {
+        res.message = fmt::format(
+            "the pose turned by the model's symmetry {} explains the events better (log-likelihood ratio {:.1f}), "
+            "but it does not verify once refined",
+            k, -cmp.log_ratio);
+        return res;
+      }
+      chosen = other;
+      switched = true;
+    }
+    if (!switched) break;
+  }
+  if (chosen.T.t_cam_model_m != best->T.t_cam_model_m) {
+    res.explained_events = chosen.explained;
+    res.support_share = static_cast<double>(chosen.explained) / static_cast<double>(events.size());
+    res.correspondences = chosen.correspondences;
+    res.line_share = search.line_share(chosen.T);
+  }
   res.ok = true;
-  res.T_cam_model = best->T;
+  res.T_cam_model = chosen.T;
   res.message = fmt::format(
       "{} lines ({:.0f}% of their events on lines the pose matches), {} correspondences, {} "
       "events explained ({:.0f}% of the window)",

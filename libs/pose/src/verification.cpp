@@ -43,7 +43,7 @@ class CountImage {
   [[nodiscard]] std::size_t idx(int x, int y) const { return static_cast<std::size_t>(y) * w_ + x; }
 
   // Events in the band and the side strips of the cell p -> q (pixel centres at integer coordinates).
-  Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o) {
+  Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o, bool mark = true) {
     Counts c;
     const Eigen::Vector2d d = q - p;
     const double len = d.norm();
@@ -65,7 +65,7 @@ class CountImage {
         if (a <= o.band_px) {
           c.on += n;
           c.on_px += 1;
-          band_[idx(x, y)] = 1;
+          if (mark) band_[idx(x, y)] = 1;
         } else if (a > side_in && a <= side_out) {
           (s < 0 ? c.left : c.right) += n;
           (s < 0 ? c.left_px : c.right_px) += 1;
@@ -97,6 +97,8 @@ struct Cell {
   std::size_t segment{0};
   Eigen::Vector3d P_m{Eigen::Vector3d::Zero()};   // model point at the cell's middle
   Eigen::Vector2d n_px{Eigen::Vector2d::Zero()};  // unit image normal of the cell
+  Eigen::Vector2d p_px{Eigen::Vector2d::Zero()};  // the cell's ends in the image
+  Eigen::Vector2d q_px{Eigen::Vector2d::Zero()};
   Counts counts;
   double normal_motion_px{0.0};
 };
@@ -121,26 +123,55 @@ int poisson_threshold(double mean, double false_alarm) {
   return 100000;
 }
 
-VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
-                         const camera::Pose& T, const VerifyOptions& o, const std::optional<MotionHint>& motion) {
-  VerifyResult res;
-  if (!T.t_cam_model_m.allFinite() || !T.q_cam_model.coeffs().allFinite()) {
-    res.reason = "pose not finite";
-    return res;
+namespace {
+
+// An alternative pose to compare with (T * S) and its motion hint's earlier pose.
+struct Alternative {
+  camera::Pose T;
+  std::optional<camera::Pose> before;
+  std::optional<camera::Pose> S;  ///< the model-frame motion (T * S), when T's is the model's symmetry
+};
+
+// Which segments a model-frame motion S maps onto a segment (both ends within 0.5 % of the model's extent, as
+// model_symmetries), and which segments are such an image: those draw the same image under T and T * S.
+void mapped_segments(const camera::LineModel& model, const camera::Pose& S, std::vector<bool>& mapped,
+                     std::vector<bool>& image) {
+  const auto& segs = model.segments_m;
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+  for (const auto& g : segs) {
+    lo = lo.cwiseMin(g.a_m).cwiseMin(g.b_m);
+    hi = hi.cwiseMax(g.a_m).cwiseMax(g.b_m);
   }
-  CountImage img(events, camera.width, camera.height);
-  // Displacement scale: the hint's motion stretched to the window's span.
-  double motion_scale = 0.0;
-  if (motion && !events.empty() && motion->t_us != motion->before.t_us) {
-    const double span = static_cast<double>(events.back().t_us - events.front().t_us);
-    motion_scale = span / static_cast<double>(motion->t_us - motion->before.t_us);
+  const double tol = 0.005 * (hi - lo).norm();
+  mapped.assign(segs.size(), false);
+  image.assign(segs.size(), false);
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    const Eigen::Vector3d a = S.apply(segs[i].a_m), b = S.apply(segs[i].b_m);
+    for (std::size_t j = 0; j < segs.size(); ++j) {
+      if (((a - segs[j].a_m).norm() <= tol && (b - segs[j].b_m).norm() <= tol) ||
+          ((a - segs[j].b_m).norm() <= tol && (b - segs[j].a_m).norm() <= tol)) {
+        mapped[i] = true;
+        image[j] = true;
+        break;
+      }
+    }
   }
+}
+
+// The cells of the visible segments of pose T (segments with fewer than min_cells in view dropped), with the
+// normal motion from the earlier pose `before` scaled by motion_scale; their bands are marked as the model's when
+// `mark`.
+std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera, const camera::LineModel& model,
+                              const camera::Pose& T, const VerifyOptions& o, double motion_scale,
+                              const camera::Pose* before, bool mark, bool count = true,
+                              const std::vector<bool>* segments = nullptr) {
   const auto inside = [&](const Eigen::Vector2d& p) {
     return p.x() >= o.border_px && p.y() >= o.border_px && p.x() <= camera.width - 1 - o.border_px &&
            p.y() <= camera.height - 1 - o.border_px;
   };
   std::vector<Cell> cells;
   for (std::size_t i = 0; i < model.segments_m.size(); ++i) {
+    if (segments && !(*segments)[i]) continue;
     const Eigen::Vector3d A = model.segments_m[i].a_m, B = model.segments_m[i].b_m;
     const Eigen::Vector3d Ac = T.apply(A), Bc = T.apply(B);
     if (!(Ac.z() > kNear_m) && !(Bc.z() > kNear_m)) continue;
@@ -150,8 +181,6 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
     const double len_px = f * (Ac.head<2>() / za - Bc.head<2>() / zb).norm();
     if (!std::isfinite(len_px)) continue;
     const int n = std::clamp(static_cast<int>(std::ceil(len_px / std::max(o.cell_px, 0.5))), 1, 2000);
-    SegmentSupport seg;
-    seg.model_index = i;
     std::vector<Cell> mine;
     for (int k = 0; k < n; ++k) {
       const Eigen::Vector3d Pa = A + (B - A) * (static_cast<double>(k) / n);
@@ -166,9 +195,11 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
       const Eigen::Vector2d d = *q - *p;
       if (!(d.norm() > 1e-9)) continue;
       c.n_px = Eigen::Vector2d(-d.y(), d.x()).normalized();
-      c.counts = img.cell(*p, *q, o);
-      if (motion_scale > 0.0) {
-        const auto m0 = camera.project(motion->before.pose.apply(c.P_m));
+      c.p_px = *p;
+      c.q_px = *q;
+      if (count) c.counts = img.cell(*p, *q, o, mark);
+      if (motion_scale > 0.0 && before) {
+        const auto m0 = camera.project(before->apply(c.P_m));
         const auto m1 = camera.project(T.apply(c.P_m));
         if (m0 && m1) c.normal_motion_px = std::abs((*m1 - *m0).dot(c.n_px)) * motion_scale;
       }
@@ -177,6 +208,90 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
     if (mine.size() < o.min_cells) continue;
     cells.insert(cells.end(), mine.begin(), mine.end());
   }
+  return cells;
+}
+
+bool cell_supported(const Counts& k, int threshold, const VerifyOptions& o) {
+  const double on_d = k.on_px > 0 ? k.on / k.on_px : 0.0;
+  const double left_d = k.left_px > 0 ? k.left / k.left_px : 0.0;
+  const double right_d = k.right_px > 0 ? k.right / k.right_px : 0.0;
+  return k.on >= threshold && on_d > o.side_ratio * left_d && on_d > o.side_ratio * right_d;
+}
+
+// Distance from point x to the segment a-b.
+double segment_distance(const Eigen::Vector2d& x, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d d = b - a;
+  const double dd = d.squaredNorm();
+  const double t = dd > 0.0 ? std::clamp((x - a).dot(d) / dd, 0.0, 1.0) : 0.0;
+  return (x - a - t * d).norm();
+}
+
+// The pixels within near_px of any of the cells (a cell's box each).
+std::vector<std::uint8_t> near_mask(const std::vector<Cell>& cells, double near_px, int width, int height) {
+  std::vector<std::uint8_t> near(static_cast<std::size_t>(width) * height, 0);
+  for (const Cell& c : cells) {
+    const int xa = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.x(), c.q_px.x()) - near_px)));
+    const int xb = std::min(width - 1, static_cast<int>(std::ceil(std::max(c.p_px.x(), c.q_px.x()) + near_px)));
+    const int ya = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.y(), c.q_px.y()) - near_px)));
+    const int yb = std::min(height - 1, static_cast<int>(std::ceil(std::max(c.p_px.y(), c.q_px.y()) + near_px)));
+    for (int y = ya; y <= yb; ++y) {
+      for (int x = xa; x <= xb; ++x) {
+        if (segment_distance(Eigen::Vector2d(x, y), c.p_px, c.q_px) <= near_px) {
+          near[static_cast<std::size_t>(y) * width + x] = 1;
+        }
+      }
+    }
+  }
+  return near;
+}
+
+// Cells of `mine` whose middles (to the pixel) are not in the mask of another pose's cells (near_mask).
+std::vector<bool> only_in(const std::vector<Cell>& mine, const std::vector<std::uint8_t>& near, int width, int height) {
+  std::vector<bool> out(mine.size(), true);
+  for (std::size_t i = 0; i < mine.size(); ++i) {
+    const Eigen::Vector2d m = 0.5 * (mine[i].p_px + mine[i].q_px);
+    const int x = static_cast<int>(std::lround(m.x())), y = static_cast<int>(std::lround(m.y()));
+    if (x >= 0 && y >= 0 && x < width && y < height && near[static_cast<std::size_t>(y) * width + x]) out[i] = false;
+  }
+  return out;
+}
+
+// Log-likelihood of "edges on these cells" against "no edge" (per cell: supported with p, else with alpha).
+double cells_log_ratio(const std::vector<bool>& use, const std::vector<bool>& supported, const std::vector<double>& p,
+                       double alpha, std::size_t& n, std::size_t& k) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < use.size(); ++i) {
+    if (!use[i]) continue;
+    const double pi = std::clamp(p[i], alpha, 1.0 - alpha);
+    ++n;
+    if (supported[i]) {
+      ++k;
+      sum += std::log(pi / alpha);
+    } else {
+      sum += std::log((1.0 - pi) / (1.0 - alpha));
+    }
+  }
+  return sum;
+}
+
+VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                         const camera::Pose& T, const VerifyOptions& o, const std::optional<MotionHint>& motion,
+                         const std::vector<Alternative>& alternatives, std::vector<PoseComparison>* comparisons,
+                         bool compare_always) {
+  VerifyResult res;
+  if (!T.t_cam_model_m.allFinite() || !T.q_cam_model.coeffs().allFinite()) {
+    res.reason = "pose not finite";
+    return res;
+  }
+  CountImage img(events, camera.width, camera.height);
+  // Displacement scale: the hint's motion stretched to the window's span.
+  double motion_scale = 0.0;
+  if (motion && !events.empty() && motion->t_us != motion->before.t_us) {
+    const double span = static_cast<double>(events.back().t_us - events.front().t_us);
+    motion_scale = span / static_cast<double>(motion->t_us - motion->before.t_us);
+  }
+  const std::vector<Cell> cells =
+      build_cells(img, camera, model, T, o, motion_scale, motion ? &motion->before.pose : nullptr, true);
   // The noise a band can hold: the window's density away from the model, times a band's area.
   const double density = img.background_density();
   double band_px_area = 0.0;
@@ -198,11 +313,7 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
     SegmentSupport& s = segs.back();
     ++s.cells;
     s.normal_motion_px += c.normal_motion_px;
-    const Counts& k = c.counts;
-    const double on_d = k.on_px > 0 ? k.on / k.on_px : 0.0;
-    const double left_d = k.left_px > 0 ? k.left / k.left_px : 0.0;
-    const double right_d = k.right_px > 0 ? k.right / k.right_px : 0.0;
-    supported[j] = k.on >= res.support_threshold && on_d > o.side_ratio * left_d && on_d > o.side_ratio * right_d;
+    supported[j] = cell_supported(c.counts, res.support_threshold, o);
     if (supported[j]) ++s.supported;
   }
   // What support a true segment can show. The events above noise per cell are measured on the window: the upper
@@ -242,9 +353,11 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
   const double sigma_n = o.cell_sigma_px / f;
   const Eigen::Matrix3d R = T.rotation();
   std::size_t j = 0;
+  std::vector<double> expected(cells.size(), 0.0);  // each cell's expected share (its segment's)
   for (SegmentSupport& s : segs) {
     s.normal_motion_px /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
     const double expected_share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * s.normal_motion_px : rate);
+    std::fill_n(expected.begin() + static_cast<std::ptrdiff_t>(j), s.cells, expected_share);
     s.required = expected_share >= 0.5 && (motion_scale <= 0.0 || s.normal_motion_px >= o.min_normal_motion_px);
     ++res.segments_judged;
     const double expected_cells = expected_share * static_cast<double>(s.cells);
@@ -327,7 +440,181 @@ VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, co
   } else {
     res.ok = true;
   }
+
+  // The symmetric alternatives, on the cells where they differ from T (only for a pose verified otherwise, or
+  // when asked): their cells and expected shares with the same noise threshold and event rate.
+  if ((res.ok || compare_always) && !alternatives.empty()) {
+    const double alpha = std::clamp(o.false_alarm, 1e-6, 0.5);
+    const double near_px = o.band_px + o.side_gap_px + o.side_width_px;
+    const std::vector<std::uint8_t> near_mine = near_mask(cells, near_px, camera.width, camera.height);
+    for (std::size_t a = 0; a < alternatives.size(); ++a) {
+      const Alternative& alt = alternatives[a];
+      // The alternative's cells placed first; events are counted only on those where it differs from T. For a
+      // symmetry S of the model, the segments S maps onto segments draw exactly T's cells of their images: only
+      // the others are placed, and T's cells on those images are shared.
+      std::vector<bool> mapped, image;
+      if (alt.S) mapped_segments(model, *alt.S, mapped, image);
+      std::vector<bool> unmapped(mapped.size());
+      for (std::size_t i = 0; i < mapped.size(); ++i) unmapped[i] = !mapped[i];
+      std::vector<Cell> other =
+          build_cells(img, camera, model, alt.T, o, motion_scale, alt.before ? &*alt.before : nullptr, false, false,
+                      alt.S ? &unmapped : nullptr);
+      const std::vector<bool> other_only = only_in(other, near_mine, camera.width, camera.height);
+      std::vector<bool> mine_only =
+          only_in(cells, near_mask(other, near_px, camera.width, camera.height), camera.width, camera.height);
+      if (alt.S) {
+        for (std::size_t k = 0; k < cells.size(); ++k) mine_only[k] = mine_only[k] && !image[cells[k].segment];
+      }
+      std::vector<bool> other_supported(other.size(), false);
+      std::vector<double> other_expected(other.size());
+      for (std::size_t b = 0; b < other.size();) {
+        std::size_t e = b;
+        double motion_sum = 0.0;
+        while (e < other.size() && other[e].segment == other[b].segment) motion_sum += other[e++].normal_motion_px;
+        const double nm = motion_sum / static_cast<double>(e - b);
+        const double share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * nm : rate);
+        for (std::size_t k = b; k < e; ++k) {
+          if (other_only[k]) {
+            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false);
+            other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
+          }
+          other_expected[k] = share;
+        }
+        b = e;
+      }
+      PoseComparison cmp;
+      const double la = cells_log_ratio(mine_only, supported, expected, alpha, cmp.cells_a_only, cmp.supported_a_only);
+      const double lb =
+          cells_log_ratio(other_only, other_supported, other_expected, alpha, cmp.cells_b_only, cmp.supported_b_only);
+      cmp.log_ratio = la - lb;
+      if (comparisons) comparisons->push_back(cmp);
+      if (cmp.log_ratio < res.symmetry_log_ratio) {
+        res.symmetry_log_ratio = cmp.log_ratio;
+        res.symmetry_index = a;
+      }
+    }
+    if (res.ok && res.symmetry_log_ratio <= -symmetry_decision_log_ratio(o)) {
+      res.ok = false;
+      res.reason = fmt::format(
+          "verification: the pose turned by the model's symmetry {} explains the events better (log-likelihood "
+          "ratio {:.1f})",
+          res.symmetry_index, res.symmetry_log_ratio);
+    }
+  }
   return res;
+}
+
+}  // namespace
+
+double symmetry_decision_log_ratio(const VerifyOptions& options) {
+  return std::log(1.0 / std::clamp(options.false_alarm, 1e-6, 0.5));
+}
+
+VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                         const camera::Pose& T, const VerifyOptions& o, const std::optional<MotionHint>& motion) {
+  std::vector<Alternative> alternatives;
+  for (const camera::Pose& S : o.symmetries) {
+    alternatives.push_back({T * S, motion ? std::optional<camera::Pose>(motion->before.pose * S) : std::nullopt, S});
+  }
+  return verify_core(events, camera, model, T, o, motion, alternatives, nullptr, false);
+}
+
+PoseComparison compare_poses(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                             const camera::Pose& A, const camera::Pose& B, const VerifyOptions& o,
+                             const std::optional<MotionHint>& motion_a, const std::optional<MotionHint>& motion_b) {
+  std::vector<PoseComparison> out;
+  const std::vector<Alternative> alternatives{
+      {B, motion_b ? std::optional<camera::Pose>(motion_b->before.pose) : std::nullopt, std::nullopt}};
+  (void)verify_core(events, camera, model, A, o, motion_a, alternatives, &out, true);
+  return out.empty() ? PoseComparison{} : out.front();
+}
+
+std::vector<camera::Pose> model_symmetries(const camera::LineModel& model, double min_share, std::size_t max_count) {
+  using Eigen::Vector3d;
+  const auto& segs = model.segments_m;
+  if (segs.empty()) return {};
+  Vector3d lo = Vector3d::Constant(1e300), hi = Vector3d::Constant(-1e300);
+  double total = 0.0;
+  for (const auto& s : segs) {
+    lo = lo.cwiseMin(s.a_m).cwiseMin(s.b_m);
+    hi = hi.cwiseMax(s.a_m).cwiseMax(s.b_m);
+    total += (s.b_m - s.a_m).norm();
+  }
+  const double tol = 0.005 * (hi - lo).norm();
+  if (!(total > 0.0) || !(tol > 0.0)) return {};
+  // Corners: a point shared by two non-parallel segments, with the far ends of both.
+  struct Corner {
+    Vector3d o, a, b;
+  };
+  std::vector<Corner> corners;
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    for (std::size_t j = i + 1; j < segs.size(); ++j) {
+      for (int ei = 0; ei < 2; ++ei) {
+        for (int ej = 0; ej < 2; ++ej) {
+          const Vector3d pi = ei ? segs[i].b_m : segs[i].a_m, qi = ei ? segs[i].a_m : segs[i].b_m;
+          const Vector3d pj = ej ? segs[j].b_m : segs[j].a_m, qj = ej ? segs[j].a_m : segs[j].b_m;
+          if ((pi - pj).norm() > tol) continue;
+          const Vector3d u = (qi - pi).normalized(), v = (qj - pj).normalized();
+          if (u.cross(v).norm() < 0.1) continue;
+          corners.push_back({pi, qi, qj});
+        }
+      }
+    }
+  }
+  // The rigid motion taking corner c onto corner d (same arm lengths and angle), from their orthonormal frames.
+  const auto frame = [](const Corner& c) {
+    Eigen::Matrix3d F;
+    const Vector3d x = (c.a - c.o).normalized();
+    const Vector3d z = x.cross(c.b - c.o).normalized();
+    F.col(0) = x;
+    F.col(1) = z.cross(x);
+    F.col(2) = z;
+    return F;
+  };
+  const auto coverage = [&](const camera::Pose& S) {
+    double covered = 0.0;
+    for (const auto& s : segs) {
+      const Vector3d a = S.apply(s.a_m), b = S.apply(s.b_m);
+      for (const auto& t : segs) {
+        if (((a - t.a_m).norm() <= tol && (b - t.b_m).norm() <= tol) ||
+            ((a - t.b_m).norm() <= tol && (b - t.a_m).norm() <= tol)) {
+          covered += (s.b_m - s.a_m).norm();
+          break;
+        }
+      }
+    }
+    return covered / total;
+  };
+  std::vector<std::pair<double, camera::Pose>> found;
+  for (const Corner& c : corners) {
+    const double la = (c.a - c.o).norm(), lb = (c.b - c.o).norm();
+    const double ang = std::acos(std::clamp((c.a - c.o).normalized().dot((c.b - c.o).normalized()), -1.0, 1.0));
+    const Eigen::Matrix3d Fc = frame(c);
+    for (const Corner& d : corners) {
+      if (std::abs((d.a - d.o).norm() - la) > tol || std::abs((d.b - d.o).norm() - lb) > tol) continue;
+      const double angd = std::acos(std::clamp((d.a - d.o).normalized().dot((d.b - d.o).normalized()), -1.0, 1.0));
+      if (std::abs(angd - ang) > 0.01) continue;
+      camera::Pose S;
+      const Eigen::Matrix3d R = frame(d) * Fc.transpose();
+      S.q_cam_model = Eigen::Quaterniond(R).normalized();
+      S.t_cam_model_m = d.o - S.q_cam_model * c.o;
+      if (camera::rotation_angle_deg(S, camera::Pose{}) < 1.0 && S.t_cam_model_m.norm() < tol) continue;  // identity
+      bool seen = false;
+      for (const auto& [share, P] : found) {
+        seen = seen || (camera::rotation_angle_deg(S, P) < 1.0 && camera::translation_distance_m(S, P) < tol);
+      }
+      if (seen) continue;
+      const double share = coverage(S);
+      if (share >= min_share) found.emplace_back(share, S);
+    }
+  }
+  std::stable_sort(found.begin(), found.end(), [](const auto& l, const auto& r) { return l.first > r.first; });
+  std::vector<camera::Pose> out;
+  for (const auto& [share, S] : found) {
+    if (out.size() >= max_count) break;
+    out.push_back(S);
+  }
+  return out;
 }
 
 }  // namespace evpipe::pose

@@ -17,6 +17,15 @@
 // and over the model), and the supported cells fix all 6 DoF (the covariance of the pose from one measurement
 // per supported cell, cell_sigma_px each, within the bounds): a single direction of moving edges (tilt only) or
 // too few supported cells cannot verify a pose, whatever the residuals say.
+//
+// Symmetric alternatives (issue 21, "never a confident wrong pose"): a model with a partial symmetry (the board's
+// outline, the roadheader's body box) has poses T * S (S a rigid motion of the model frame that maps most of its
+// segments onto segments) whose image shares most cells with T's; only the cells one of them has and the other
+// does not (the discriminating cells) tell them apart. compare_poses() scores both on those cells with the same
+// cell model as above (a cell of an edge is supported with its expected share p, a cell without one with the
+// false-alarm rate) and returns the log-likelihood ratio. verify_pose() refuses T when one of
+// VerifyOptions::symmetries explains the window clearly better (ratio below -log(1/false_alarm)); the initialiser
+// also refuses a pose whose alternative it cannot rule out (|ratio| below that) unless a prior excludes it.
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
@@ -25,6 +34,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -58,6 +68,9 @@ struct VerifyOptions {
   double cell_sigma_px = 1.0;
   double max_rotation_std_deg = 2.0;
   double max_translation_std_m = 0.02;
+  /// Model-frame rigid motions S (T_model_model') to compare the pose T with T * S (model_symmetries(); the
+  /// estimator fills them from its model). Empty: no comparison.
+  std::vector<camera::Pose> symmetries;
 };
 
 /// The target's motion over the window: the pose it had `before` (camera::StampedPose) and the time of the pose
@@ -90,7 +103,37 @@ struct VerifyResult {
   double rotation_std_deg{0.0};    ///< from the supported cells (infinity when not all DoF are fixed)
   double translation_std_m{0.0};
   std::vector<SegmentSupport> segments;
+  /// The lowest log-likelihood ratio of T against T * S over VerifyOptions::symmetries (+infinity without any),
+  /// and the index of that S.
+  double symmetry_log_ratio{std::numeric_limits<double>::infinity()};
+  std::size_t symmetry_index{0};
 };
+
+/// Log-likelihood ratio of pose A against pose B on a window (> 0: A explains it better): over the cells of A that
+/// B has nowhere near (farther than the side strips) and those of B that A has nowhere near, each cell supported
+/// (the test of verify_pose) with its edge's expected share p (clamped to [false_alarm, 1 - false_alarm]) under the
+/// hypothesis that draws it and with false_alarm under the other. Motion hints as for verify_pose (the hint of B:
+/// the earlier pose of A moved by the same model-frame motion). Noise density and event rate are measured at A.
+struct PoseComparison {
+  double log_ratio{0.0};
+  std::size_t cells_a_only{0}, supported_a_only{0};
+  std::size_t cells_b_only{0}, supported_b_only{0};
+};
+[[nodiscard]] PoseComparison compare_poses(EventSpan events, const camera::CameraModel& camera,
+                                           const camera::LineModel& model, const camera::Pose& A, const camera::Pose& B,
+                                           const VerifyOptions& options = {},
+                                           const std::optional<MotionHint>& motion_a = std::nullopt,
+                                           const std::optional<MotionHint>& motion_b = std::nullopt);
+
+/// Rigid motions S of the model frame (not the identity) that map segments covering at least min_share of the
+/// model's total length onto segments (both ends within 0.5 % of the model's extent): the partial symmetries
+/// (candidates from pairs of congruent corners; at most max_count, most coverage first). The board's 180 deg turns
+/// about its three axes; the roadheader's body box turned about its centre.
+[[nodiscard]] std::vector<camera::Pose> model_symmetries(const camera::LineModel& model, double min_share = 0.5,
+                                                         std::size_t max_count = 8);
+
+/// The decision level of the comparisons: log(1 / false_alarm) (odds of 20 : 1 at the default 5 %).
+[[nodiscard]] double symmetry_decision_log_ratio(const VerifyOptions& options);
 
 /// Verifies T_cam_model on a window of events (pixel coordinates of the camera). Never throws.
 [[nodiscard]] VerifyResult verify_pose(EventSpan events, const camera::CameraModel& camera,
