@@ -43,7 +43,8 @@ SScaleResult s_scale(std::span<const double> residuals, const SScaleOptions& opt
     r.converged = r.sigma == 0.0;
     return r;
   }
-  const double inv_nb = 1.0 / (static_cast<double>(residuals.size()) * options.b);
+  const double b = loss::tukey_normal_consistency(options.c);
+  const double inv_nb = 1.0 / (static_cast<double>(residuals.size()) * b);
   for (int it = 0; it < options.max_iterations; ++it) {
     const double acc = loss::tukey_s_sum(residuals, sigma, options.c);
     const double next = std::sqrt(acc * inv_nb);

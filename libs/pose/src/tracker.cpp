@@ -159,7 +159,6 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
   } else {
     mm::SScaleOptions so;
     so.c = o.c_s;
-    so.b = o.b_s;
     so.max_iterations = o.s_max_iterations;
     if (sigma_previous_n > 0.0) {
       // The previous round's scale: the same root without a median per round. It was fitted with a wider gate,

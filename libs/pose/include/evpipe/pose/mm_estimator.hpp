@@ -18,9 +18,8 @@
 
 namespace evpipe::pose::mm {
 
-inline constexpr double kSB = 1.547 * 1.547 / 12.0;  ///< b = rho_1.547(inf) / 2 = 0.19943 (the paper's 0.199)
-inline constexpr double kMadToSigma = 1.4826;        ///< 1 / Phi^-1(3/4): MAD -> sigma at the Gaussian
-inline constexpr double kLopetB = 0.199;             ///< the constant as written in the paper and the demo code
+inline constexpr double kMadToSigma = 1.4826;  ///< 1 / Phi^-1(3/4): MAD -> sigma at the Gaussian
+inline constexpr double kLopetB = 0.199;       ///< the constant as written in the paper and the demo code
 
 /// Median of the values (0 for an empty span). O(N), uses `scratch` (resized) for the copy.
 [[nodiscard]] double median(std::span<const double> values, std::span<double> scratch);
@@ -28,8 +27,8 @@ inline constexpr double kLopetB = 0.199;             ///< the constant as writte
 [[nodiscard]] double mad(std::span<const double> values);
 
 struct SScaleOptions {
+  /// Tukey c; the equation's b = loss::tukey_normal_consistency(c) follows from it (consistent at the Gaussian).
   double c = loss::kTukeyS;
-  double b = kSB;
   int max_iterations = 10;
   double relative_tolerance = 1e-3;  ///< stop when |sigma_new / sigma - 1| < this
   /// > 0: start the iteration here instead of at 1.4826 MAD (the fixed point is the same: mean rho(d/sigma) is
