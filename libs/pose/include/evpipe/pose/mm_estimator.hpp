@@ -3,7 +3,7 @@
 // scale and the IRLS weights the tracker uses. Plain functions, no state; units are the residuals' units. The loss
 // itself (rho, psi, weights, the consistency constant b(c)) is robust_loss.hpp's.
 //
-// S-scale (50 % breakdown, c0 = 1.547, b = E_Phi[rho_c0] = 0.19950 = rho_c0(inf) / 2): the fixed point of
+// S-scale (50 % breakdown, c0 = 1.547, b = E_Phi[rho_c0] = 0.19950 ≈ rho_c0(inf) / 2): the fixed point of
 //   sigma² <- (1 / (N b)) sum_i w_S(u_i) d_i²,   u_i = d_i / sigma,   w_S(u) = rho_c0(u) / u²
 // (equivalently sigma² <- sigma² mean(rho_c0(u_i)) / b), started at 1.4826 MAD.
 // MM weights (95 % Gaussian efficiency): w_4.685(d_i / sigma_S).
