@@ -6,35 +6,6 @@
 
 namespace evpipe::pose::mm {
 
-double tukey_rho(double u, double c) noexcept {
-  const double c2 = c * c;
-  if (!(std::abs(u) <= c)) return c2 / 6.0;
-  const double t = 1.0 - (u * u) / c2;
-  return (c2 / 6.0) * (1.0 - t * t * t);
-}
-
-double tukey_psi(double u, double c) noexcept {
-  if (!(std::abs(u) <= c)) return 0.0;
-  const double t = 1.0 - (u * u) / (c * c);
-  return u * t * t;
-}
-
-double tukey_weight(double u, double c) noexcept {
-  if (!(std::abs(u) <= c)) return 0.0;
-  const double t = 1.0 - (u * u) / (c * c);
-  return t * t;
-}
-
-double s_weight(double u, double c) noexcept {
-  // rho_c(u) / u² without the quotient: with t = 1 - u²/c², 1 - t³ = (u²/c²)(1 + t + t²), so for |u| <= c
-  // rho/u² = (1 + t + t²) / 6 (exact, no cancellation at u = 0, where it is 1/2), and c² / (6u²) beyond.
-  const double u2 = u * u;
-  const double c2 = c * c;
-  if (!(u2 <= c2)) return c2 / (6.0 * u2);
-  const double t = 1.0 - u2 / c2;
-  return (1.0 + t + t * t) / 6.0;
-}
-
 double median(std::span<const double> values, std::span<double> scratch) {
   if (values.empty()) return 0.0;
   const std::size_t n = values.size();
@@ -72,19 +43,10 @@ SScaleResult s_scale(std::span<const double> residuals, const SScaleOptions& opt
     r.converged = r.sigma == 0.0;
     return r;
   }
-  const double inv_nb = 1.0 / (static_cast<double>(residuals.size()) * options.b);
+  const double b = loss::tukey_normal_consistency(options.c);
+  const double inv_nb = 1.0 / (static_cast<double>(residuals.size()) * b);
   for (int it = 0; it < options.max_iterations; ++it) {
-    // Σ w_S(d/σ) d² with w_S as in s_weight(), written for a fixed σ so the loop has no division:
-    // (1 + t + t²) d² / 6 with t = 1 - d²/(cσ)² inside, (cσ)² / 6 outside.
-    const double cs2 = options.c * options.c * sigma * sigma;
-    const double inv_cs2 = 1.0 / cs2;
-    double acc = 0.0;
-    for (const double d : residuals) {
-      const double d2 = d * d;
-      const double t = 1.0 - d2 * inv_cs2;
-      acc += d2 <= cs2 ? (1.0 + t + t * t) * d2 : cs2;
-    }
-    acc /= 6.0;
+    const double acc = loss::tukey_s_sum(residuals, sigma, options.c);
     const double next = std::sqrt(acc * inv_nb);
     ++r.iterations;
     if (!(next > 0.0)) {  // every residual 0 (reachable from a positive start): the scale is 0
@@ -108,7 +70,7 @@ double lopet_scale(std::span<const double> residuals) {
   const double s0 = kMadToSigma * mad(residuals);
   double acc = 0.0;
   for (double d : residuals) {
-    const double w0 = s0 > 0.0 ? tukey_weight(d / s0, kTukeyMM) : (d == 0.0 ? 1.0 : 0.0);
+    const double w0 = s0 > 0.0 ? loss::tukey_weight(d / s0, loss::kTukeyMM) : (d == 0.0 ? 1.0 : 0.0);
     acc += w0 * d * d;
   }
   return std::sqrt(acc / static_cast<double>(residuals.size()) / kLopetB);
@@ -120,12 +82,12 @@ void mm_weights(std::span<const double> residuals, double sigma, std::span<doubl
     return;
   }
   const double inv = 1.0 / sigma;
-  for (std::size_t i = 0; i < residuals.size(); ++i) weights[i] = tukey_weight(residuals[i] * inv, c);
+  for (std::size_t i = 0; i < residuals.size(); ++i) weights[i] = loss::tukey_weight(residuals[i] * inv, c);
 }
 
 double lopet_weights(std::span<const double> residuals, std::span<double> weights) {
   const double sigma = lopet_scale(residuals);
-  mm_weights(residuals, sigma, weights, kTukeyMM);
+  mm_weights(residuals, sigma, weights, loss::kTukeyMM);
   double sum = 0.0;
   for (std::size_t i = 0; i < residuals.size(); ++i) sum += weights[i];
   for (std::size_t i = 0; i < residuals.size(); ++i) weights[i] = sum > 0.0 ? weights[i] / sum : 0.0;

@@ -5,6 +5,7 @@
 #include "evpipe/pose/tracker.hpp"
 
 #include "evpipe/pose/mm_estimator.hpp"
+#include "evpipe/pose/robust_loss.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -139,15 +140,7 @@ double robust_cost(const std::vector<double>& r, double sigma, const TrackerOpti
     }
     return cost;
   }
-  // rho and w of mm::tukey_rho / tukey_weight in one pass: t = 1 - (r / cσ)², rho = (c²/6)(1 - t³), w = t².
-  const double inv_cs2 = 1.0 / (o.c_mm * o.c_mm * sigma * sigma);
-  for (std::size_t j = 0; j < r.size(); ++j) {
-    const double t = 1.0 - r[j] * r[j] * inv_cs2;
-    const bool in = t >= 0.0;
-    cost += in ? 1.0 - t * t * t : 1.0;
-    w_ls[j] = in ? t * t : 0.0;
-  }
-  return cost * (o.c_mm * o.c_mm / 6.0);
+  return loss::tukey_cost_and_weights(r, sigma, o.c_mm, w_ls);
 }
 
 RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegment>& segs,
@@ -166,7 +159,6 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
   } else {
     mm::SScaleOptions so;
     so.c = o.c_s;
-    so.b = o.b_s;
     so.max_iterations = o.s_max_iterations;
     if (sigma_previous_n > 0.0) {
       // The previous round's scale: the same root without a median per round. It was fitted with a wider gate,

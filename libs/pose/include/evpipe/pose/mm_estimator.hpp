@@ -1,12 +1,9 @@
 #pragma once
 // Tukey-bisquare S- and MM-estimation on residual spans (paper eqs. 40-44; Yohai's MM-estimator): the robust
-// scale and the IRLS weights the tracker uses. Plain functions, no state; units are the residuals' units.
+// scale and the IRLS weights the tracker uses. Plain functions, no state; units are the residuals' units. The loss
+// itself (rho, psi, weights, the consistency constant b(c)) is robust_loss.hpp's.
 //
-//   rho_c(u) = u²/2 - u⁴/(2c²) + u⁶/(6c⁴) = (c²/6) [1 - (1 - (u/c)²)³]   for |u| <= c,   c²/6 otherwise
-//   psi_c(u) = rho_c'(u) = u (1 - (u/c)²)²                                 for |u| <= c,   0 otherwise
-//   w_c(u)   = psi_c(u) / u = (1 - (u/c)²)²                                for |u| <= c,   0 otherwise
-//
-// S-scale (50 % breakdown, c0 = 1.547, b = rho_c0(inf) / 2 = c0²/12 = 0.1994): the fixed point of
+// S-scale (50 % breakdown, c0 = 1.547, b = E_Phi[rho_c0] = 0.19950 ≈ rho_c0(inf) / 2): the fixed point of
 //   sigma² <- (1 / (N b)) sum_i w_S(u_i) d_i²,   u_i = d_i / sigma,   w_S(u) = rho_c0(u) / u²
 // (equivalently sigma² <- sigma² mean(rho_c0(u_i)) / b), started at 1.4826 MAD.
 // MM weights (95 % Gaussian efficiency): w_4.685(d_i / sigma_S).
@@ -15,21 +12,14 @@
 // pose.md §7.4/7.5): w0 = w_4.685(d / (1.4826 MAD)), sigma = sqrt(mean(w0 d²) / 0.199), then
 // w = w_4.685(d / sigma) normalised to sum 1. No c = 1.547 anywhere; sigma is ~2x the inlier scale.
 
+#include "evpipe/pose/robust_loss.hpp"
+
 #include <span>
 
 namespace evpipe::pose::mm {
 
-inline constexpr double kTukeyS = 1.547;             ///< c of the S-step (50 % breakdown)
-inline constexpr double kTukeyMM = 4.685;            ///< c of the MM-step (95 % efficiency at the Gaussian)
-inline constexpr double kSB = 1.547 * 1.547 / 12.0;  ///< b = rho_1.547(inf) / 2 = 0.19943 (the paper's 0.199)
-inline constexpr double kMadToSigma = 1.4826;        ///< 1 / Phi^-1(3/4): MAD -> sigma at the Gaussian
-inline constexpr double kLopetB = 0.199;             ///< the constant as written in the paper and the demo code
-
-[[nodiscard]] double tukey_rho(double u, double c) noexcept;
-[[nodiscard]] double tukey_psi(double u, double c) noexcept;
-[[nodiscard]] double tukey_weight(double u, double c) noexcept;
-/// rho_c(u) / u², the S-step weight; its limit 1/2 at u = 0.
-[[nodiscard]] double s_weight(double u, double c) noexcept;
+inline constexpr double kMadToSigma = 1.4826;  ///< 1 / Phi^-1(3/4): MAD -> sigma at the Gaussian
+inline constexpr double kLopetB = 0.199;       ///< the constant as written in the paper and the demo code
 
 /// Median of the values (0 for an empty span). O(N), uses `scratch` (resized) for the copy.
 [[nodiscard]] double median(std::span<const double> values, std::span<double> scratch);
@@ -37,8 +27,8 @@ inline constexpr double kLopetB = 0.199;             ///< the constant as writte
 [[nodiscard]] double mad(std::span<const double> values);
 
 struct SScaleOptions {
-  double c = kTukeyS;
-  double b = kSB;
+  /// Tukey c; the equation's b = loss::tukey_normal_consistency(c) follows from it (consistent at the Gaussian).
+  double c = loss::kTukeyS;
   int max_iterations = 10;
   double relative_tolerance = 1e-3;  ///< stop when |sigma_new / sigma - 1| < this
   /// > 0: start the iteration here instead of at 1.4826 MAD (the fixed point is the same: mean rho(d/sigma) is
@@ -60,7 +50,7 @@ struct SScaleResult {
 [[nodiscard]] double lopet_scale(std::span<const double> residuals);
 
 /// weights[i] = w_c(residuals[i] / sigma). sigma <= 0 gives weight 1 for zero residuals, 0 otherwise.
-void mm_weights(std::span<const double> residuals, double sigma, std::span<double> weights, double c = kTukeyMM);
+void mm_weights(std::span<const double> residuals, double sigma, std::span<double> weights, double c = loss::kTukeyMM);
 
 /// The LOPET demo code's weights: w_4.685(d / lopet_scale(d)), normalised to sum 1 (all 0 if they sum to 0).
 /// Returns the scale used.

@@ -7,6 +7,7 @@
 #include "evpipe/camera/line_model.hpp"
 #include "evpipe/core/event.hpp"
 #include "evpipe/pose/projection.hpp"
+#include "evpipe/pose/robust_loss.hpp"
 #include "evpipe/pose/types.hpp"
 #include "evpipe/pose/verification.hpp"
 
@@ -58,10 +59,10 @@ struct TrackerOptions {
   double gate_min_px = 2.5;
 
   // --- Robust estimation (paper eqs. 40-44).
-  double c_s = 1.547;   ///< Tukey c of the S-scale step
-  double b_s = 0.1994;  ///< b = rho_{c_s}(inf) / 2 (50 % breakdown)
+  /// Tukey c of the S-scale step. Its b is not an option: b = E_Phi[rho_c_s] (robust_loss.hpp), 0.19950 at 1.547.
+  double c_s = loss::kTukeyS;
   int s_max_iterations = 10;
-  double c_mm = 4.685;  ///< Tukey c of the MM step
+  double c_mm = loss::kTukeyMM;  ///< Tukey c of the MM step
   /// The authors' demo-code variant instead (pose.md §7.4/7.5): scale and weights recomputed from the current
   /// residuals at every iteration with c = 4.685 for both passes, weights normalised to sum 1 and squared in
   /// the cost. For A/B comparisons only.
