@@ -461,6 +461,27 @@ TEST(PipelineGraph, AFailingStatisticsPublishIsThePublishStagesErrorThreadedOrSe
   }
 }
 
+// A sink that throws something that is not a std::exception from every statistics publish, the final one included
+// (the publish thread's exit hook): the run reports it; before, the hook let it escape and std::terminate ended the
+// program.
+class NonStandardThrowingSink final : public PoseSink {
+ public:
+  void publish_pose(const PoseSample& /*s*/) override {}
+  void publish_stats(const PipelineStats& /*s*/) override { throw 42; }  // NOLINT(hicpp-exception-baseclass)
+};
+
+TEST(PipelineGraph, ANonStandardExceptionFromTheStatisticsIsReportedNotFatal) {
+  for (const bool sequential : {false, true}) {
+    SCOPED_TRACE(sequential ? "sequential" : "threaded");
+    RecordingProcessor processor;
+    NonStandardThrowingSink sink;
+    Pipeline p(std::make_unique<VectorSource>(synthetic(13, 40, 500)), nullptr, processor, sink);
+    const auto error = sequential ? p.run_sequential() : p.run();
+    ASSERT_TRUE(error);
+    EXPECT_EQ(*error, "publish: unknown exception");
+  }
+}
+
 class ThrowingSource final : public EventSource {
  public:
   EventBatchPtr next() override {

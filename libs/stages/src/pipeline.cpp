@@ -529,6 +529,8 @@ void Pipeline::start() {
                                          s.sink.publish_stats(final_stats);
                                        } catch (const std::exception& e) {
                                          s.fail("publish", e.what());
+                                       } catch (...) {  // a hook must not throw: std::terminate otherwise
+                                         s.fail("publish", "unknown exception");
                                        }
                                        s.thread_done();
                                      },
@@ -590,6 +592,8 @@ std::optional<std::string> Pipeline::run_sequential() {
     s.sink.publish_stats(final_stats);
   } catch (const std::exception& e) {
     s.fail("publish", e.what());
+  } catch (...) {
+    s.fail("publish", "unknown exception");
   }
   return error();
 }
