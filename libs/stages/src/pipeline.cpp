@@ -332,7 +332,7 @@ struct Pipeline::Impl {
         }
         const auto t0 = Clock::now();
         EventBatchPtr b = source->next();
-        const auto read_at = Clock::now();
+        const auto t1 = Clock::now();  // the batch itself carries when it was delivered (read_at)
         snapshot_source();
         if (!b) {
           if (source->finished()) break;
@@ -345,7 +345,7 @@ struct Pipeline::Impl {
         const std::size_t n = b->size();
         bump(m.items_in);
         bump(m.events_in, n);
-        m.step_ns.record(to_ns(read_at - t0));
+        m.step_ns.record(to_ns(t1 - t0));
         switch (out.push(std::move(b))) {
           case PushResult::pushed:
           case PushResult::replaced:
