@@ -10,6 +10,8 @@
 //   evdenoise_decisions --filter baf --set duration_us=10000 rec.aedat4 > decisions.txt
 //   evdenoise_decisions --filter knoise --tile 16 --bench 5 rec.aedat4
 //
+// --scores prints "<decision> <score>" per event instead (the score as an exact hexadecimal float; "-" when the filter
+// has none): for checking that a faster implementation decides and scores bit-identically.
 // --tile N repeats the recording N times end to end (each copy shifted by the recording's span + 1 µs).
 // Exit status 0, 2 on a usage error, 1 on any other error (message on stderr).
 
@@ -41,13 +43,14 @@ struct Args {
   int bench_runs = 0;
   bool count_only = false;
   bool dump_events = false;
+  bool scores = false;
   std::string file;
 };
 
 [[noreturn]] void usage(const std::string& why) {
   std::fprintf(stderr,
                "evdenoise_decisions: %s\nusage: evdenoise_decisions --filter NAME[,NAME...] [--set KEY=VALUE]... "
-               "[--chunk N] [--tile N] [--count | --events | --bench RUNS] FILE\n",
+               "[--chunk N] [--tile N] [--count | --scores | --events | --bench RUNS] FILE\n",
                why.c_str());
   std::exit(2);
 }
@@ -89,6 +92,8 @@ Args parse(int argc, char** argv) {
       a.bench_runs = static_cast<int>(number(i));
     } else if (arg == "--events") {
       a.dump_events = true;
+    } else if (arg == "--scores") {
+      a.scores = true;
     } else if (arg == "--count") {
       a.count_only = true;
     } else if (!arg.empty() && arg[0] == '-') {
@@ -171,6 +176,17 @@ int main(int argc, char** argv) {
       return 0;
     }
     std::string out;
+    if (args.scores) {
+      for (std::size_t i = 0; i < d.keep.size(); ++i) {
+        if (d.score.size() == d.keep.size()) {
+          fmt::format_to(std::back_inserter(out), "{} {:a}\n", d.keep[i] != 0 ? 1 : 0, d.score[i]);
+        } else {
+          fmt::format_to(std::back_inserter(out), "{} -\n", d.keep[i] != 0 ? 1 : 0);
+        }
+      }
+      std::fwrite(out.data(), 1, out.size(), stdout);
+      return 0;
+    }
     out.reserve(d.keep.size() * 2);
     for (const auto k : d.keep) {
       out += k != 0 ? "1\n" : "0\n";

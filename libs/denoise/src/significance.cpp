@@ -2,7 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
+
+#if defined(__SSE4_1__)
+#include <smmintrin.h>
+#define EVPIPE_SIGNIFICANCE_SSE 1
+#endif
 
 namespace evpipe::denoise {
 
@@ -41,21 +47,25 @@ double binomial_quantile(int n, int k, double target) noexcept {
   return lo;
 }
 
-/// Sorting network (19 compare-exchanges) for 8 values.
-void sort8(std::array<std::int32_t, 8>& v) noexcept {
-  const auto cx = [&v](std::size_t i, std::size_t j) {
-    const std::int32_t lo = std::min(v[i], v[j]);
-    const std::int32_t hi = std::max(v[i], v[j]);
-    v[i] = lo;
-    v[j] = hi;
+/// Sorting network (19 compare-exchanges) for 8 values, on locals so that each exchange is a min and a max.
+inline void sort8(std::array<std::int32_t, 8>& v) noexcept {
+  std::int32_t a0 = v[0], a1 = v[1], a2 = v[2], a3 = v[3], a4 = v[4], a5 = v[5], a6 = v[6], a7 = v[7];
+  const auto cx = [](std::int32_t& x, std::int32_t& y) {
+    const std::int32_t lo = std::min(x, y);
+    y = std::max(x, y);
+    x = lo;
   };
-  cx(0, 2), cx(1, 3), cx(4, 6), cx(5, 7);
-  cx(0, 4), cx(1, 5), cx(2, 6), cx(3, 7);
-  cx(0, 1), cx(2, 3), cx(4, 5), cx(6, 7);
-  cx(2, 4), cx(3, 5);
-  cx(1, 4), cx(3, 6);
-  cx(1, 2), cx(3, 4), cx(5, 6);
+  cx(a0, a2), cx(a1, a3), cx(a4, a6), cx(a5, a7);
+  cx(a0, a4), cx(a1, a5), cx(a2, a6), cx(a3, a7);
+  cx(a0, a1), cx(a2, a3), cx(a4, a5), cx(a6, a7);
+  cx(a2, a4), cx(a3, a5);
+  cx(a1, a4), cx(a3, a6);
+  cx(a1, a2), cx(a3, a4), cx(a5, a6);
+  v = {a0, a1, a2, a3, a4, a5, a6, a7};
 }
+
+constexpr std::array<std::int8_t, 8> kDx = {-1, 0, 1, -1, 1, -1, 0, 1};
+constexpr std::array<std::int8_t, 8> kDy = {-1, -1, -1, 0, 0, 1, 1, 1};
 
 }  // namespace
 
@@ -82,6 +92,8 @@ void Significance::reset() noexcept {
   std::fill(ring_.begin(), ring_.end(), kNever);
   started_ = false;
   base_us_ = 0;
+  last_t_us_ = 0;
+  ordered_ = true;
   zero_support_ = 0;
   zero_acc_ = 0.0;
   time_acc_s_ = 0.0;
@@ -172,9 +184,7 @@ void Significance::rebase(std::int64_t t_us) noexcept {
   base_us_ += shift;
 }
 
-float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept {
-  static constexpr std::array<std::int8_t, 8> kDx = {-1, 0, 1, -1, 1, -1, 0, 1};
-  static constexpr std::array<std::int8_t, 8> kDy = {-1, -1, -1, 0, 0, 1, 1, 1};
+float Significance::edge_lines_scalar(std::size_t centre, std::int32_t now, int polarity) const noexcept {
   const std::int32_t window = line_us_[7];
   std::array<std::int32_t, 8> sorted{};  // matched ages so far, ascending
   int n = 0;
@@ -228,6 +238,97 @@ float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarit
   return ratio;
 }
 
+float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept {
+#if defined(EVPIPE_SIGNIFICANCE_SSE)
+  if (!ordered_) return edge_lines_scalar(centre, now, polarity);
+  // Per direction d, both rings in one register each (entries newest first; on time-ordered input their ages
+  // ascend). The scalar walk finds the first entry a of p − d (age s_a <= T, the event's polarity) for which some
+  // entry of p − 2d with the polarity has its age in [L_a, (2 + ε)s_a + δ₀], where L_a is the largest lower bound
+  // (2 − ε)s_a' − δ₀ over the entries a' <= a it examined (its second pointer never moves back). With ascending
+  // ages that is the same as testing the 4×4 pairs at once and taking the smallest s_a that matched.
+  const std::int32_t window = line_us_[7];
+  const __m128i v_now = _mm_set1_epi32(now);
+  const __m128i v_pol = _mm_set1_epi32(polarity);
+  const __m128i v_one = _mm_set1_epi32(1);
+  const __m128i v_window = _mm_set1_epi32(window);
+  const __m128i v_past_window = _mm_set1_epi32(window + 1);
+  const __m128i v_jitter = _mm_set1_epi32(jitter_us_);
+  const __m128 v_precision = _mm_set1_ps(precision_);
+  const __m128i v_lowest = _mm_set1_epi32(std::numeric_limits<std::int32_t>::min());
+  const __m128i v_highest = _mm_set1_epi32(std::numeric_limits<std::int32_t>::max());
+  const __m128i v_cap = _mm_set1_epi32(kAgeCap);
+  const __m128i v_ones = _mm_set1_epi32(-1);
+  // The decision as counts: u_(m) <= U_m for some m (U_m > 0) iff at least m matched ages are <= U_m.
+  const auto* line = reinterpret_cast<const __m128i*>(line_us_.data());
+  const __m128i u_lo = _mm_loadu_si128(line);
+  const __m128i u_hi = _mm_loadu_si128(line + 1);
+  const __m128i u_lo1 = _mm_add_epi32(u_lo, v_one);
+  const __m128i u_hi1 = _mm_add_epi32(u_hi, v_one);
+  // count > m - 1 decides m (m = 1..8); never for U_m <= 0.
+  const __m128i need_lo =
+      _mm_blendv_epi8(v_highest, _mm_setr_epi32(0, 1, 2, 3), _mm_cmpgt_epi32(u_lo, _mm_setzero_si128()));
+  const __m128i need_hi =
+      _mm_blendv_epi8(v_highest, _mm_setr_epi32(4, 5, 6, 7), _mm_cmpgt_epi32(u_hi, _mm_setzero_si128()));
+  __m128i count_lo = _mm_setzero_si128();
+  __m128i count_hi = _mm_setzero_si128();
+  const std::int32_t* ring = ring_.data();
+  const auto c = static_cast<std::int64_t>(centre);
+  std::array<std::int32_t, 8> found{};
+  found.fill(kAgeCap);
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::int64_t off = kDy[i] * stride_ + kDx[i];
+    const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (c - off) * kRing));
+    const __m128i r2 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (c - 2 * off) * kRing));
+    // Ages of p − d, capped just past the window (entries past it are never examined, nor are the ones after).
+    const __m128i s1 = _mm_min_epi32(_mm_sub_epi32(v_now, _mm_srai_epi32(r1, 1)), v_past_window);
+    const __m128i pol1 = _mm_cmpeq_epi32(_mm_and_si128(r1, v_one), v_pol);
+    // Ages of p − 2d; an entry of the other polarity never matches (past every upper bound).
+    const __m128i pol2 = _mm_cmpeq_epi32(_mm_and_si128(r2, v_one), v_pol);
+    const __m128i s2 = _mm_blendv_epi8(v_highest, _mm_sub_epi32(v_now, _mm_srai_epi32(r2, 1)), pol2);
+    // tol = δ₀ + (int)(ε·s), in float as the scalar walk computes it.
+    const __m128i tol = _mm_add_epi32(v_jitter, _mm_cvttps_epi32(_mm_mul_ps(v_precision, _mm_cvtepi32_ps(s1))));
+    const __m128i twice = _mm_add_epi32(s1, s1);
+    const __m128i hi = _mm_add_epi32(twice, tol);
+    // L_a: running maximum of the lower bounds of the examined entries (those with the polarity).
+    __m128i lo = _mm_blendv_epi8(v_lowest, _mm_sub_epi32(twice, tol), pol1);
+    lo = _mm_max_epi32(lo, _mm_alignr_epi8(lo, v_lowest, 12));
+    lo = _mm_max_epi32(lo, _mm_alignr_epi8(lo, v_lowest, 8));
+    // none: no entry of p − 2d in [L_a, hi_a].
+    __m128i none = v_ones;
+    const auto outside = [&](__m128i b) { return _mm_or_si128(_mm_cmpgt_epi32(lo, b), _mm_cmpgt_epi32(b, hi)); };
+    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0x00)));
+    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0x55)));
+    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0xAA)));
+    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0xFF)));
+    const __m128i bad = _mm_or_si128(_mm_or_si128(none, _mm_cmpgt_epi32(s1, v_window)), _mm_xor_si128(pol1, v_ones));
+    __m128i m = _mm_blendv_epi8(s1, v_cap, bad);  // ages ascend: the first match is the smallest
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0xB1));  // in every lane
+    found[i] = _mm_cvtsi128_si32(m);
+    // Once decided, the decision is final (the scalar walk stops there, and so does the margin).
+    count_lo = _mm_sub_epi32(count_lo, _mm_cmpgt_epi32(u_lo1, m));
+    count_hi = _mm_sub_epi32(count_hi, _mm_cmpgt_epi32(u_hi1, m));
+    const __m128i decided = _mm_or_si128(_mm_cmpgt_epi32(count_lo, need_lo), _mm_cmpgt_epi32(count_hi, need_hi));
+    if (_mm_movemask_epi8(decided) != 0) break;
+  }
+  // The margin max_m U_m / u_(m) over the matches examined (unmatched directions sort last and count 0).
+  sort8(found);
+  if (found[0] == kAgeCap) return 0.0F;
+  const __m128i f_lo = _mm_loadu_si128(reinterpret_cast<const __m128i*>(found.data()));
+  const __m128i f_hi = _mm_loadu_si128(reinterpret_cast<const __m128i*>(found.data() + 4));
+  const __m128 r_lo = _mm_div_ps(_mm_cvtepi32_ps(u_lo), _mm_cvtepi32_ps(_mm_max_epi32(f_lo, v_one)));
+  const __m128 r_hi = _mm_div_ps(_mm_cvtepi32_ps(u_hi), _mm_cvtepi32_ps(_mm_max_epi32(f_hi, v_one)));
+  // Masked to +0 where unmatched; all values are >= 0, so max is order-free.
+  __m128 r = _mm_max_ps(_mm_andnot_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(f_lo, v_cap)), r_lo),
+                        _mm_andnot_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(f_hi, v_cap)), r_hi));
+  r = _mm_max_ps(r, _mm_shuffle_ps(r, r, 0x4E));
+  r = _mm_max_ps(r, _mm_shuffle_ps(r, r, 0xB1));
+  return _mm_cvtss_f32(r);
+#else
+  return edge_lines_scalar(centre, now, polarity);
+#endif
+}
+
 bool Significance::accept(const Event& e) noexcept {
   if (!geometry_.contains(e.x, e.y)) {
     score_ = 0.0F;
@@ -237,7 +338,10 @@ bool Significance::accept(const Event& e) noexcept {
     started_ = true;
     base_us_ = e.t_us;
     period_end_us_ = e.t_us + options_.rate_period_us;
+    last_t_us_ = e.t_us;
   }
+  ordered_ = ordered_ && e.t_us >= last_t_us_;
+  last_t_us_ = e.t_us;
   if (e.t_us >= period_end_us_) update_rate(e.t_us);
   if (e.t_us - base_us_ >= kRebaseAt) rebase(e.t_us);
   const auto now = static_cast<std::int32_t>(e.t_us - base_us_);
@@ -272,7 +376,7 @@ bool Significance::accept(const Event& e) noexcept {
   const int polarity = e.polarity ? 1 : 0;
   if (keep) {
     ++kept_recency_;
-  } else if (options_.edge_line) {
+  } else if (options_.edge_line && newest <= line_us_[7]) {  // else no direction has an entry within U_8
     const float line = edge_lines(centre, now, polarity);
     score = std::max(score, line);
     if (line >= 1.0F) {

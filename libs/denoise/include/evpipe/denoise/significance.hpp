@@ -23,6 +23,10 @@
 //
 // State: per pixel the last `kRing` (4) events (time·2 + polarity, 32 bits relative to a base that moves forward on
 // long streams), padded by 2 pixels on every side; allocated in one place (allocate()).
+//
+// Speed: the edge-line test reads each direction's two rings whole (16 bytes each) and matches all their pairs at
+// once (SSE4.1, in the portable x86-64-v2 build), which on time-ordered input is the same test as the scalar walk
+// along the rings; the scalar walk remains the reference, used for out-of-order input and without SSE4.1.
 
 #include <array>
 #include <cstdint>
@@ -72,6 +76,8 @@ class Significance {
   void update_rate(std::int64_t t_us) noexcept;
   /// max_m U_m / u_(m) over the directions' smallest matched ages u, examined until it reaches 1 (kept).
   [[nodiscard]] float edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept;
+  /// The same, walking the rings one entry at a time (the reference; exact on any input order).
+  [[nodiscard]] float edge_lines_scalar(std::size_t centre, std::int32_t now, int polarity) const noexcept;
 
   SensorGeometry geometry_;
   SignificanceOptions options_;
@@ -79,6 +85,8 @@ class Significance {
   std::vector<std::int32_t> ring_;  // kRing per padded pixel, newest first: (t − base)·2 + polarity
   std::int64_t base_us_ = 0;
   bool started_ = false;
+  std::int64_t last_t_us_ = 0;  // time of the previous event
+  bool ordered_ = true;         // no event older than its predecessor since reset(): the rings are sorted
   std::array<std::int32_t, 8> recency_us_{};
   std::array<std::int32_t, 8> line_us_{};  // U_1..U_8
   std::array<double, 8> quantile_{};       // q_m: P(Binomial(8, q_m) >= m) = alpha / 2 / 8
