@@ -5,9 +5,12 @@
 #include <cstring>
 #include <limits>
 
-#if defined(__SSE4_1__)
-#include <smmintrin.h>
-#define EVPIPE_SIGNIFICANCE_SSE 1
+#include <cstdlib>
+#include <string_view>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#define EVPIPE_SIGNIFICANCE_X86 1
 #endif
 
 namespace evpipe::denoise {
@@ -67,6 +70,177 @@ inline void sort8(std::array<std::int32_t, 8>& v) noexcept {
 constexpr std::array<std::int8_t, 8> kDx = {-1, 0, 1, -1, 1, -1, 0, 1};
 constexpr std::array<std::int8_t, 8> kDy = {-1, -1, -1, 0, 0, 1, 1, 1};
 
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+// The edge-line test's matching, vectorised. Per direction d, both rings in one register each (entries newest
+// first; on time-ordered input their ages ascend). The scalar walk (Significance::edge_lines_scalar) finds the
+// first entry a of p − d (age s_a <= T, the event's polarity) for which some entry of p − 2d with the polarity has
+// its age in [L_a, (2 + ε)s_a + δ₀], L_a being the largest lower bound (2 − ε)s_a' − δ₀ over the entries a' <= a
+// it examined (its second pointer never moves back). With ascending ages that is the same as testing the 4×4
+// pairs at once and taking the smallest s_a that matched. The decision as counts: u_(m) <= U_m for some m
+// (U_m > 0) iff at least m of the matched ages are <= U_m; once it holds the scalar walk stops, and so do these.
+// Both return n and the matched ages found[0..n) in direction order.
+struct LineArgs {
+  const std::int32_t* ring;
+  std::int64_t stride;
+  std::int64_t centre;
+  std::int32_t now;
+  int polarity;
+  const std::int32_t* line_us;  // U_1..U_8; U_8 is the window T' of the walk
+  std::int32_t jitter_us;
+  float precision;
+};
+
+constexpr std::int32_t kNoMatch = std::numeric_limits<std::int32_t>::max();
+
+__attribute__((target("sse4.1"))) std::size_t match_ages_sse4(const LineArgs& a,
+                                                              std::array<std::int32_t, 9>& found) noexcept {
+  const __m128i v_now = _mm_set1_epi32(a.now);
+  const __m128i v_pol = _mm_set1_epi32(a.polarity);
+  const __m128i v_one = _mm_set1_epi32(1);
+  const __m128i v_past_window = _mm_set1_epi32(a.line_us[7] + 1);
+  const __m128i v_jitter = _mm_set1_epi32(a.jitter_us);
+  const __m128 v_precision = _mm_set1_ps(a.precision);
+  const __m128i v_lowest = _mm_set1_epi32(std::numeric_limits<std::int32_t>::min());
+  const __m128i v_highest = _mm_set1_epi32(kNoMatch);
+  const __m128i u_lo = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.line_us));
+  const __m128i u_hi = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.line_us + 4));
+  const __m128i u_lo1 = _mm_add_epi32(u_lo, v_one);
+  const __m128i u_hi1 = _mm_add_epi32(u_hi, v_one);
+  // count > m − 1 decides m (m = 1..8); never for U_m <= 0.
+  const __m128i need_lo =
+      _mm_blendv_epi8(v_highest, _mm_setr_epi32(0, 1, 2, 3), _mm_cmpgt_epi32(u_lo, _mm_setzero_si128()));
+  const __m128i need_hi =
+      _mm_blendv_epi8(v_highest, _mm_setr_epi32(4, 5, 6, 7), _mm_cmpgt_epi32(u_hi, _mm_setzero_si128()));
+  __m128i count_lo = _mm_setzero_si128();
+  __m128i count_hi = _mm_setzero_si128();
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::int64_t off = kDy[i] * a.stride + kDx[i];
+    const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre - off) * 4));
+    const __m128i r2 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre - 2 * off) * 4));
+    // Ages of p − d, capped just past the window (entries past it are never examined, nor are the ones after).
+    const __m128i s1 = _mm_min_epi32(_mm_sub_epi32(v_now, _mm_srai_epi32(r1, 1)), v_past_window);
+    const __m128i pol1 = _mm_cmpeq_epi32(_mm_and_si128(r1, v_one), v_pol);
+    // Ages of p − 2d; an entry of the other polarity never matches (past every upper bound).
+    const __m128i pol2 = _mm_cmpeq_epi32(_mm_and_si128(r2, v_one), v_pol);
+    const __m128i s2 = _mm_blendv_epi8(v_highest, _mm_sub_epi32(v_now, _mm_srai_epi32(r2, 1)), pol2);
+    // tol = δ₀ + (int)(ε·s), in float as the scalar walk computes it.
+    const __m128i tol = _mm_add_epi32(v_jitter, _mm_cvttps_epi32(_mm_mul_ps(v_precision, _mm_cvtepi32_ps(s1))));
+    const __m128i twice = _mm_add_epi32(s1, s1);
+    const __m128i hi = _mm_add_epi32(twice, tol);
+    // L_a: running maximum of the lower bounds of the examined entries (those with the polarity).
+    __m128i lo = _mm_blendv_epi8(v_lowest, _mm_sub_epi32(twice, tol), pol1);
+    lo = _mm_max_epi32(lo, _mm_alignr_epi8(lo, v_lowest, 12));
+    lo = _mm_max_epi32(lo, _mm_alignr_epi8(lo, v_lowest, 8));
+    // none: no entry of p − 2d in [L_a, hi_a].
+    __m128i b = _mm_shuffle_epi32(s2, 0x00);
+    __m128i none = _mm_or_si128(_mm_cmpgt_epi32(lo, b), _mm_cmpgt_epi32(b, hi));
+    b = _mm_shuffle_epi32(s2, 0x55);
+    none = _mm_and_si128(none, _mm_or_si128(_mm_cmpgt_epi32(lo, b), _mm_cmpgt_epi32(b, hi)));
+    b = _mm_shuffle_epi32(s2, 0xAA);
+    none = _mm_and_si128(none, _mm_or_si128(_mm_cmpgt_epi32(lo, b), _mm_cmpgt_epi32(b, hi)));
+    b = _mm_shuffle_epi32(s2, 0xFF);
+    none = _mm_and_si128(none, _mm_or_si128(_mm_cmpgt_epi32(lo, b), _mm_cmpgt_epi32(b, hi)));
+    const __m128i valid = _mm_andnot_si128(_mm_or_si128(none, _mm_cmpeq_epi32(s1, v_past_window)), pol1);
+    __m128i m = _mm_blendv_epi8(v_highest, s1, valid);  // ages ascend: the first match is the smallest
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0xB1));  // in every lane
+    const std::int32_t age = _mm_cvtsi128_si32(m);
+    found[n] = age;
+    n += age != kNoMatch ? 1 : 0;
+    count_lo = _mm_sub_epi32(count_lo, _mm_cmpgt_epi32(u_lo1, m));
+    count_hi = _mm_sub_epi32(count_hi, _mm_cmpgt_epi32(u_hi1, m));
+    const __m128i decided = _mm_or_si128(_mm_cmpgt_epi32(count_lo, need_lo), _mm_cmpgt_epi32(count_hi, need_hi));
+    if (_mm_movemask_epi8(decided) != 0) break;
+  }
+  return n;
+}
+
+/// The same with AVX2: two directions per register (one per 128-bit half), all 8 thresholds in one register.
+__attribute__((target("avx2"))) std::size_t match_ages_avx2(const LineArgs& a,
+                                                            std::array<std::int32_t, 9>& found) noexcept {
+  const __m256i v_now = _mm256_set1_epi32(a.now);
+  const __m256i v_pol = _mm256_set1_epi32(a.polarity);
+  const __m256i v_one = _mm256_set1_epi32(1);
+  const __m256i v_past_window = _mm256_set1_epi32(a.line_us[7] + 1);
+  const __m256i v_jitter = _mm256_set1_epi32(a.jitter_us);
+  const __m256 v_precision = _mm256_set1_ps(a.precision);
+  const __m256i v_lowest = _mm256_set1_epi32(std::numeric_limits<std::int32_t>::min());
+  const __m256i v_highest = _mm256_set1_epi32(kNoMatch);
+  const __m256i u = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a.line_us));
+  const __m256i u1 = _mm256_add_epi32(u, v_one);
+  const __m256i need = _mm256_blendv_epi8(v_highest, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+                                          _mm256_cmpgt_epi32(u, _mm256_setzero_si256()));
+  __m256i count = _mm256_setzero_si256();
+  std::size_t n = 0;
+  const auto* ring = a.ring;
+  for (std::size_t i = 0; i < 8; i += 2) {
+    const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
+    const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
+    const __m256i r1 =
+        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off1) * 4)),
+                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off0) * 4)));
+    const __m256i r2 =
+        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off1) * 4)),
+                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off0) * 4)));
+    const __m256i s1 = _mm256_min_epi32(_mm256_sub_epi32(v_now, _mm256_srai_epi32(r1, 1)), v_past_window);
+    const __m256i pol1 = _mm256_cmpeq_epi32(_mm256_and_si256(r1, v_one), v_pol);
+    const __m256i pol2 = _mm256_cmpeq_epi32(_mm256_and_si256(r2, v_one), v_pol);
+    const __m256i s2 = _mm256_blendv_epi8(v_highest, _mm256_sub_epi32(v_now, _mm256_srai_epi32(r2, 1)), pol2);
+    const __m256i tol =
+        _mm256_add_epi32(v_jitter, _mm256_cvttps_epi32(_mm256_mul_ps(v_precision, _mm256_cvtepi32_ps(s1))));
+    const __m256i twice = _mm256_add_epi32(s1, s1);
+    const __m256i hi = _mm256_add_epi32(twice, tol);
+    __m256i lo = _mm256_blendv_epi8(v_lowest, _mm256_sub_epi32(twice, tol), pol1);
+    lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, v_lowest, 12));  // within each half
+    lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, v_lowest, 8));
+    __m256i b = _mm256_shuffle_epi32(s2, 0x00);
+    __m256i none = _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi));
+    b = _mm256_shuffle_epi32(s2, 0x55);
+    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+    b = _mm256_shuffle_epi32(s2, 0xAA);
+    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+    b = _mm256_shuffle_epi32(s2, 0xFF);
+    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+    const __m256i valid = _mm256_andnot_si256(_mm256_or_si256(none, _mm256_cmpeq_epi32(s1, v_past_window)), pol1);
+    __m256i m = _mm256_blendv_epi8(v_highest, s1, valid);
+    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));  // in every lane of each half
+    // Direction i (low half), then i + 1 (high half): the decision may fall between them.
+    const __m256i m0 = _mm256_permute2x128_si256(m, m, 0x00);
+    const std::int32_t age0 = _mm_cvtsi128_si32(_mm256_castsi256_si128(m));
+    found[n] = age0;
+    n += age0 != kNoMatch ? 1 : 0;
+    count = _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, m0));
+    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) break;
+    const __m256i m1 = _mm256_permute2x128_si256(m, m, 0x11);
+    const std::int32_t age1 = _mm_cvtsi128_si32(_mm256_extracti128_si256(m, 1));
+    found[n] = age1;
+    n += age1 != kNoMatch ? 1 : 0;
+    count = _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, m1));
+    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) break;
+  }
+  return n;
+}
+#endif
+
+/// The edge-line kernel for this CPU, or the one EVPIPE_SIGNIFICANCE_KERNEL names (scalar, sse4, avx2; for tests
+/// and benchmarks: every kernel gives the same decisions and scores). A kernel the CPU lacks falls back to the next.
+std::uint8_t pick_kernel(std::uint8_t scalar, std::uint8_t sse4, std::uint8_t avx2) noexcept {
+  std::uint8_t best = scalar;
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("sse4.1")) best = sse4;
+  if (__builtin_cpu_supports("avx2")) best = avx2;
+#endif
+  const char* want = std::getenv("EVPIPE_SIGNIFICANCE_KERNEL");
+  if (want == nullptr) return best;
+  const std::string_view w(want);
+  if (w == "scalar") return scalar;
+  if (w == "sse4") return best == avx2 ? sse4 : best;
+  return best;
+}
+
 }  // namespace
 
 Significance::Significance(const SensorGeometry& geometry, SignificanceOptions options)
@@ -78,6 +252,8 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
   for (int m = 1; m <= kNeighbours; ++m) {
     quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, options_.alpha / 2.0 / kNeighbours);
   }
+  static_assert(kRing == 4, "the vector kernels hold one ring in 4 lanes");
+  kernel_ = pick_kernel(kScalar, kSse4, kAvx2);
   check_pixel_budget("significance", geometry, sizeof(std::int32_t) * kRing);
   allocate();
   reset();
@@ -239,94 +415,33 @@ float Significance::edge_lines_scalar(std::size_t centre, std::int32_t now, int 
 }
 
 float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept {
-#if defined(EVPIPE_SIGNIFICANCE_SSE)
-  if (!ordered_) return edge_lines_scalar(centre, now, polarity);
-  // Per direction d, both rings in one register each (entries newest first; on time-ordered input their ages
-  // ascend). The scalar walk finds the first entry a of p − d (age s_a <= T, the event's polarity) for which some
-  // entry of p − 2d with the polarity has its age in [L_a, (2 + ε)s_a + δ₀], where L_a is the largest lower bound
-  // (2 − ε)s_a' − δ₀ over the entries a' <= a it examined (its second pointer never moves back). With ascending
-  // ages that is the same as testing the 4×4 pairs at once and taking the smallest s_a that matched.
-  const std::int32_t window = line_us_[7];
-  const __m128i v_now = _mm_set1_epi32(now);
-  const __m128i v_pol = _mm_set1_epi32(polarity);
-  const __m128i v_one = _mm_set1_epi32(1);
-  const __m128i v_window = _mm_set1_epi32(window);
-  const __m128i v_past_window = _mm_set1_epi32(window + 1);
-  const __m128i v_jitter = _mm_set1_epi32(jitter_us_);
-  const __m128 v_precision = _mm_set1_ps(precision_);
-  const __m128i v_lowest = _mm_set1_epi32(std::numeric_limits<std::int32_t>::min());
-  const __m128i v_highest = _mm_set1_epi32(std::numeric_limits<std::int32_t>::max());
-  const __m128i v_cap = _mm_set1_epi32(kAgeCap);
-  const __m128i v_ones = _mm_set1_epi32(-1);
-  // The decision as counts: u_(m) <= U_m for some m (U_m > 0) iff at least m matched ages are <= U_m.
-  const auto* line = reinterpret_cast<const __m128i*>(line_us_.data());
-  const __m128i u_lo = _mm_loadu_si128(line);
-  const __m128i u_hi = _mm_loadu_si128(line + 1);
-  const __m128i u_lo1 = _mm_add_epi32(u_lo, v_one);
-  const __m128i u_hi1 = _mm_add_epi32(u_hi, v_one);
-  // count > m - 1 decides m (m = 1..8); never for U_m <= 0.
-  const __m128i need_lo =
-      _mm_blendv_epi8(v_highest, _mm_setr_epi32(0, 1, 2, 3), _mm_cmpgt_epi32(u_lo, _mm_setzero_si128()));
-  const __m128i need_hi =
-      _mm_blendv_epi8(v_highest, _mm_setr_epi32(4, 5, 6, 7), _mm_cmpgt_epi32(u_hi, _mm_setzero_si128()));
-  __m128i count_lo = _mm_setzero_si128();
-  __m128i count_hi = _mm_setzero_si128();
-  const std::int32_t* ring = ring_.data();
-  const auto c = static_cast<std::int64_t>(centre);
-  std::array<std::int32_t, 8> found{};
-  found.fill(kAgeCap);
-  for (std::size_t i = 0; i < 8; ++i) {
-    const std::int64_t off = kDy[i] * stride_ + kDx[i];
-    const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (c - off) * kRing));
-    const __m128i r2 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (c - 2 * off) * kRing));
-    // Ages of p − d, capped just past the window (entries past it are never examined, nor are the ones after).
-    const __m128i s1 = _mm_min_epi32(_mm_sub_epi32(v_now, _mm_srai_epi32(r1, 1)), v_past_window);
-    const __m128i pol1 = _mm_cmpeq_epi32(_mm_and_si128(r1, v_one), v_pol);
-    // Ages of p − 2d; an entry of the other polarity never matches (past every upper bound).
-    const __m128i pol2 = _mm_cmpeq_epi32(_mm_and_si128(r2, v_one), v_pol);
-    const __m128i s2 = _mm_blendv_epi8(v_highest, _mm_sub_epi32(v_now, _mm_srai_epi32(r2, 1)), pol2);
-    // tol = δ₀ + (int)(ε·s), in float as the scalar walk computes it.
-    const __m128i tol = _mm_add_epi32(v_jitter, _mm_cvttps_epi32(_mm_mul_ps(v_precision, _mm_cvtepi32_ps(s1))));
-    const __m128i twice = _mm_add_epi32(s1, s1);
-    const __m128i hi = _mm_add_epi32(twice, tol);
-    // L_a: running maximum of the lower bounds of the examined entries (those with the polarity).
-    __m128i lo = _mm_blendv_epi8(v_lowest, _mm_sub_epi32(twice, tol), pol1);
-    lo = _mm_max_epi32(lo, _mm_alignr_epi8(lo, v_lowest, 12));
-    lo = _mm_max_epi32(lo, _mm_alignr_epi8(lo, v_lowest, 8));
-    // none: no entry of p − 2d in [L_a, hi_a].
-    __m128i none = v_ones;
-    const auto outside = [&](__m128i b) { return _mm_or_si128(_mm_cmpgt_epi32(lo, b), _mm_cmpgt_epi32(b, hi)); };
-    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0x00)));
-    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0x55)));
-    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0xAA)));
-    none = _mm_and_si128(none, outside(_mm_shuffle_epi32(s2, 0xFF)));
-    const __m128i bad = _mm_or_si128(_mm_or_si128(none, _mm_cmpgt_epi32(s1, v_window)), _mm_xor_si128(pol1, v_ones));
-    __m128i m = _mm_blendv_epi8(s1, v_cap, bad);  // ages ascend: the first match is the smallest
-    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0x4E));
-    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0xB1));  // in every lane
-    found[i] = _mm_cvtsi128_si32(m);
-    // Once decided, the decision is final (the scalar walk stops there, and so does the margin).
-    count_lo = _mm_sub_epi32(count_lo, _mm_cmpgt_epi32(u_lo1, m));
-    count_hi = _mm_sub_epi32(count_hi, _mm_cmpgt_epi32(u_hi1, m));
-    const __m128i decided = _mm_or_si128(_mm_cmpgt_epi32(count_lo, need_lo), _mm_cmpgt_epi32(count_hi, need_hi));
-    if (_mm_movemask_epi8(decided) != 0) break;
-  }
-  // The margin max_m U_m / u_(m) over the matches examined (unmatched directions sort last and count 0).
-  sort8(found);
-  if (found[0] == kAgeCap) return 0.0F;
-  const __m128i f_lo = _mm_loadu_si128(reinterpret_cast<const __m128i*>(found.data()));
-  const __m128i f_hi = _mm_loadu_si128(reinterpret_cast<const __m128i*>(found.data() + 4));
-  const __m128 r_lo = _mm_div_ps(_mm_cvtepi32_ps(u_lo), _mm_cvtepi32_ps(_mm_max_epi32(f_lo, v_one)));
-  const __m128 r_hi = _mm_div_ps(_mm_cvtepi32_ps(u_hi), _mm_cvtepi32_ps(_mm_max_epi32(f_hi, v_one)));
-  // Masked to +0 where unmatched; all values are >= 0, so max is order-free.
-  __m128 r = _mm_max_ps(_mm_andnot_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(f_lo, v_cap)), r_lo),
-                        _mm_andnot_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(f_hi, v_cap)), r_hi));
-  r = _mm_max_ps(r, _mm_shuffle_ps(r, r, 0x4E));
-  r = _mm_max_ps(r, _mm_shuffle_ps(r, r, 0xB1));
-  return _mm_cvtss_f32(r);
-#else
-  return edge_lines_scalar(centre, now, polarity);
+  if (kernel_ == kScalar || !ordered_) return edge_lines_scalar(centre, now, polarity);
+  std::array<std::int32_t, 9> found{};  // matched ages in direction order, then no-match markers (sorted last)
+  found.fill(std::numeric_limits<std::int32_t>::max());
+  std::size_t n = 0;
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+  const LineArgs args{ring_.data(), stride_,   static_cast<std::int64_t>(centre), now, polarity, line_us_.data(),
+                      jitter_us_,   precision_};
+  n = kernel_ == kAvx2 ? match_ages_avx2(args, found) : match_ages_sse4(args, found);
 #endif
+  // The margin max_m U_m / u_(m) over the matches examined, with the scalar walk's float operations; few matches
+  // (the common case) need no sorting network.
+  const auto margin = [this](std::size_t m, std::int32_t u) {
+    return static_cast<float>(line_us_[m]) / static_cast<float>(std::max(u, 1));
+  };
+  if (n == 0) return 0.0F;
+  if (n == 1) return margin(0, found[0]);
+  if (n == 2) {
+    return std::max(margin(0, std::min(found[0], found[1])), margin(1, std::max(found[0], found[1])));
+  }
+  std::array<std::int32_t, 8> sorted{};
+  std::copy_n(found.begin(), 8, sorted.begin());
+  sort8(sorted);
+  float ratio = 0.0F;
+  for (std::size_t m = 0; m < n; ++m) {
+    ratio = std::max(ratio, margin(m, sorted[m]));
+  }
+  return ratio;
 }
 
 bool Significance::accept(const Event& e) noexcept {
@@ -379,16 +494,19 @@ bool Significance::accept(const Event& e) noexcept {
   } else if (options_.edge_line && newest <= line_us_[7]) {  // else no direction has an entry within U_8
     const float line = edge_lines(centre, now, polarity);
     score = std::max(score, line);
-    if (line >= 1.0F) {
-      keep = true;
-      ++kept_line_;
-    }
+    keep = line >= 1.0F;
+    kept_line_ += keep ? 1 : 0;
   }
   score_ = score;
   // Stamp the event into its pixel's ring (newest first), kept or not.
   std::int32_t* own = ring_.data() + centre * kRing;
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+  const __m128i older = _mm_slli_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(own)), 4);
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(own), _mm_or_si128(older, _mm_cvtsi32_si128(now * 2 + polarity)));
+#else
   std::copy_backward(own, own + kRing - 1, own + kRing);
   own[0] = now * 2 + polarity;
+#endif
   return keep;
 }
 

@@ -25,8 +25,10 @@
 // long streams), padded by 2 pixels on every side; allocated in one place (allocate()).
 //
 // Speed: the edge-line test reads each direction's two rings whole (16 bytes each) and matches all their pairs at
-// once (SSE4.1, in the portable x86-64-v2 build), which on time-ordered input is the same test as the scalar walk
-// along the rings; the scalar walk remains the reference, used for out-of-order input and without SSE4.1.
+// once (SSE4.1, or AVX2 two directions at a time, chosen at run time from the CPU), which on time-ordered input is
+// the same test as the scalar walk along the rings: the same decisions and scores. The scalar walk remains the
+// reference, used for out-of-order input and on other CPUs (EVPIPE_SIGNIFICANCE_KERNEL=scalar|sse4 forces it or
+// SSE4.1, for tests and benchmarks).
 
 #include <array>
 #include <cstdint>
@@ -87,6 +89,10 @@ class Significance {
   bool started_ = false;
   std::int64_t last_t_us_ = 0;  // time of the previous event
   bool ordered_ = true;         // no event older than its predecessor since reset(): the rings are sorted
+  static constexpr std::uint8_t kScalar = 0;
+  static constexpr std::uint8_t kSse4 = 1;
+  static constexpr std::uint8_t kAvx2 = 2;
+  std::uint8_t kernel_ = kScalar;  // edge-line kernel (chosen from the CPU at construction)
   std::array<std::int32_t, 8> recency_us_{};
   std::array<std::int32_t, 8> line_us_{};  // U_1..U_8
   std::array<double, 8> quantile_{};       // q_m: P(Binomial(8, q_m) >= m) = alpha / 2 / 8
