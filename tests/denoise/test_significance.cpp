@@ -4,7 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "evpipe/denoise/registry.hpp"
 #include "evpipe/denoise/significance.hpp"
@@ -183,6 +188,68 @@ TEST(Significance, StreamEqualsBatchAndSurvivesARebase) {
   std::size_t late = 0;
   for (std::size_t i = ev.size() / 2; i < ev.size(); ++i) late += a.keep[i];
   EXPECT_GT(late, 500U);
+}
+
+using Settings = std::vector<std::pair<std::string, std::string>>;
+
+/// Decisions and scores of the filter with the edge-line kernel EVPIPE_SIGNIFICANCE_KERNEL names ("" = the CPU's).
+Decisions run_kernel(const std::string& kernel, const Settings& settings, const std::vector<Event>& ev) {
+  if (kernel.empty()) {
+    unsetenv("EVPIPE_SIGNIFICANCE_KERNEL");
+  } else {
+    setenv("EVPIPE_SIGNIFICANCE_KERNEL", kernel.c_str(), 1);
+  }
+  auto f = make_filter("significance", settings, kDavis346);
+  unsetenv("EVPIPE_SIGNIFICANCE_KERNEL");
+  return run_filter(*f, ev, 1000);
+}
+
+TEST(Significance, VectorKernelsDecideAndScoreExactlyAsTheScalarWalk) {
+  // Noise at 1-20 Hz/px, edges of both polarities at 3-400 px/s in several directions, bursts of equal
+  // timestamps, and a 10-minute jump (a rebase): every kernel must give the scalar walk's decisions and the same
+  // score bits, for several option sets.
+  std::mt19937_64 rng(11);
+  std::vector<Event> ev;
+  std::int64_t base = 0;
+  for (const double rate : {1.0, 20.0, 5.0}) {
+    std::vector<Event> part;
+    for (const double speed : {3.0, 15.0, 60.0, 400.0}) {
+      auto e =
+          edge(speed, 20 + static_cast<int>(speed) % 200, 40, 30 + static_cast<int>(speed) % 150, 20, base + 10'000);
+      for (auto& x : e) x.polarity = speed > 20.0;
+      part.insert(part.end(), e.begin(), e.end());
+    }
+    const auto n = static_cast<std::size_t>(rate * 346 * 260 * 0.4);
+    std::uniform_int_distribution<int> x(0, 345), y(0, 259);
+    std::uniform_int_distribution<std::int64_t> t(base, base + 400'000);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Event e{t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), i % 2 == 0};
+      part.push_back(e);
+      if (i % 97 == 0) part.push_back({e.t_us, e.x, static_cast<std::uint16_t>((e.y + 1) % 260), e.polarity});
+    }
+    std::sort(part.begin(), part.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    ev.insert(ev.end(), part.begin(), part.end());
+    base += rate == 20.0 ? 600'000'000 : 500'000;
+  }
+  const std::vector<Settings> option_sets = {
+      {},
+      {{"slowest_speed_px_s", "0.5"}, {"edge_precision_px", "0.5"}, {"timing_jitter_us", "500"}},
+      {{"edge_precision_px", "0"}, {"timing_jitter_us", "0"}},
+      {{"recency_max_us", "20000"}, {"alpha", "0.01"}},
+      {{"rate_period_us", "1000000000"}, {"initial_rate_hz", "0.5"}},
+  };
+  for (const auto& settings : option_sets) {
+    const Decisions ref = run_kernel("scalar", settings, ev);
+    ASSERT_EQ(ref.size(), ev.size());
+    EXPECT_GT(count_kept(ref), 1000U);
+    for (const std::string kernel : {"sse4", ""}) {
+      const Decisions d = run_kernel(kernel, settings, ev);
+      EXPECT_EQ(d.keep, ref.keep) << "kernel '" << kernel << "'";
+      ASSERT_EQ(d.score.size(), ref.score.size());
+      EXPECT_EQ(std::memcmp(d.score.data(), ref.score.data(), d.score.size() * sizeof(float)), 0)
+          << "kernel '" << kernel << "'";
+    }
+  }
 }
 
 TEST(Significance, ListedWithItsParameters) {
