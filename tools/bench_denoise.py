@@ -71,6 +71,14 @@ def mev(b: dict | None) -> float | None:
     return float(v) if v is not None else None
 
 
+def cpu_mev(b: dict | None) -> float | None:
+    """Mev/s over the benchmark's CPU time instead of its wall time (needs its "events" counter)."""
+    if b is None or not b.get("events") or not b.get("cpu_time"):
+        return None
+    scale = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}.get(b.get("time_unit", "ns"), 1e-9)
+    return float(b["events"]) / (float(b["cpu_time"]) * scale) * 1e-6
+
+
 def f1(v: float | None) -> str:
     return "n/a" if v is None else f"{v:.2f}"
 
@@ -124,12 +132,15 @@ def report_build(preset: str, d: Path, min_time: float, dv: bool, out: list[str]
     # evpipe's pipeline default (issue 18): >= 12 Mev/s on one core on the real demo and the 10 Mev/s stream; its
     # ratio to baf (the dv-processing BAF semantics, itself compared with dv-processing below) in the same run.
     for ds in ("real", "synth10", "synthetic"):
-        sig = mev(base.get(f"denoise/{ds}/significance"))
-        baf = mev(base.get(f"denoise/{ds}/baf"))
+        # bench_denoise's benchmarks measure wall time (UseRealTime): their names end in /real_time.
+        sig = mev(base.get(f"denoise/{ds}/significance/real_time", base.get(f"denoise/{ds}/significance")))
+        baf = mev(base.get(f"denoise/{ds}/baf/real_time", base.get(f"denoise/{ds}/baf")))
         if sig is None:
             continue
         out.append(f"goal check [{ds}]: significance (pipeline default, decision latency 0 ms) {f1(sig)} Mev/s "
-                   f"(goal >= 12: {'met' if sig >= 12 else 'NOT met'}); significance / baf {f1(sig / baf if baf else None)}")
+                   f"(goal >= 12: {'met' if sig >= 12 else 'NOT met'}); significance / baf {f1(sig / baf if baf else None)}"
+                   f"; on CPU time (what a loaded machine's wall clock hides) {f1(cpu_mev(base.get(f'denoise/{ds}/significance/real_time')))}"
+                   f" Mev/s, baf {f1(cpu_mev(base.get(f'denoise/{ds}/baf/real_time')))}")
     out.append("")
     if dv:
         r = sh([sys.executable, str(ROOT / "tools" / "bench_denoise_vs_dv.py"), "--build", str(d)])
