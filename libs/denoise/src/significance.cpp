@@ -416,8 +416,7 @@ float Significance::edge_lines_scalar(std::size_t centre, std::int32_t now, int 
 
 float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept {
   if (kernel_ == kScalar || !ordered_) return edge_lines_scalar(centre, now, polarity);
-  std::array<std::int32_t, 9> found{};  // matched ages in direction order, then no-match markers (sorted last)
-  found.fill(std::numeric_limits<std::int32_t>::max());
+  std::array<std::int32_t, 9> found;  // NOLINT(cppcoreguidelines-pro-type-member-init): matched ages, found[0..n)
   std::size_t n = 0;
 #if defined(EVPIPE_SIGNIFICANCE_X86)
   const LineArgs args{ring_.data(), stride_,   static_cast<std::int64_t>(centre), now, polarity, line_us_.data(),
@@ -434,8 +433,9 @@ float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarit
   if (n == 2) {
     return std::max(margin(0, std::min(found[0], found[1])), margin(1, std::max(found[0], found[1])));
   }
-  std::array<std::int32_t, 8> sorted{};
-  std::copy_n(found.begin(), 8, sorted.begin());
+  std::array<std::int32_t, 8> sorted{};  // the matches, then no-match markers (sorted last)
+  sorted.fill(std::numeric_limits<std::int32_t>::max());
+  std::copy_n(found.begin(), n, sorted.begin());
   sort8(sorted);
   float ratio = 0.0F;
   for (std::size_t m = 0; m < n; ++m) {
