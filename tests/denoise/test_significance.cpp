@@ -252,6 +252,40 @@ TEST(Significance, VectorKernelsDecideAndScoreExactlyAsTheScalarWalk) {
   }
 }
 
+TEST(Significance, VectorKernelsKeepTheWalksRunningLowerBound) {
+  // The scalar walk's second pointer never moves back: an entry of p − 2d skipped as too young for a newer entry
+  // of p − d is not reconsidered for an older one. The lower bound (2 − ε)s − δ₀ = 2s − (int)(ε·s) only decreases
+  // with s through float rounding, beyond 2^25 µs with ε = 1: find such an s, put entries of p − d at ages s and
+  // s + 1, one of p − 2d at the lower bound for s + 1 (below the one for s), and the walk finds no line there.
+  const auto lower = [](std::int32_t age) {
+    return 2 * age - static_cast<std::int32_t>(1.0F * static_cast<float>(age));
+  };
+  std::int32_t s = std::int32_t{1} << 25;
+  while (lower(s) <= lower(s + 1)) ++s;
+  ASSERT_LT(s, (std::int32_t{1} << 25) + 1000);
+  const std::int64_t t = 200'000'000;
+  const std::uint16_t x = 100;
+  const std::uint16_t y = 100;
+  std::vector<Event> ev = {{t - s - 1, x - 1, y, true},         // p − d, age s + 1
+                           {t - s, x - 1, y, true},             // p − d, age s
+                           {t - lower(s + 1), x - 2, y, true},  // p − 2d
+                           {t, x, y, true}};                    // p
+  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  const Settings settings = {{"initial_rate_hz", "0"},
+                             {"rate_period_us", "1000000000"},
+                             {"slowest_speed_px_s", "0.01"},
+                             {"edge_precision_px", "1"},
+                             {"timing_jitter_us", "0"}};
+  const Decisions ref = run_kernel("scalar", settings, ev);
+  ASSERT_EQ(ref.size(), 4U);
+  EXPECT_EQ(ref.keep[3], 0);
+  for (const std::string kernel : {"sse4", ""}) {
+    const Decisions d = run_kernel(kernel, settings, ev);
+    EXPECT_EQ(d.keep, ref.keep) << "kernel '" << kernel << "'";
+    EXPECT_EQ(d.score, ref.score) << "kernel '" << kernel << "'";
+  }
+}
+
 TEST(Significance, ListedWithItsParameters) {
   const FilterSpec* s = find_filter("significance");
   ASSERT_NE(s, nullptr);
