@@ -327,6 +327,16 @@ bool Significance::accept(const Event& e) noexcept {
   return keep;
 }
 
+void Significance::prefetch_block(const Event& e) const noexcept {
+  if (!geometry_.contains(e.x, e.y)) return;
+  const std::int64_t c = (e.y + kPad) * stride_ + (e.x + kPad);
+  for (std::int64_t dy = -1; dy <= 1; ++dy) {  // the 3×3 block (p + d); p + 2d is read only after a match
+    const char* row = reinterpret_cast<const char*>(ring_.data() + (c + dy * stride_ - 1) * kRing);
+    __builtin_prefetch(row);
+    __builtin_prefetch(row + 3 * kRing * sizeof(std::int32_t) - 1);
+  }
+}
+
 int Significance::future_lines(std::size_t centre, std::int32_t then, int polarity,
                                std::array<std::int32_t, 8>& ages) const noexcept {
   // Direction d: p + d fired at then + s and p + 2d at then + s2 with |s2 − 2s| <= δ₀ + ε·s, both of the event's
@@ -431,6 +441,7 @@ class SignificanceFilter final : public Filter {
   }
 
  private:
+  static constexpr std::size_t kPrefetchAhead = 4;
   static constexpr std::uint8_t kPending = 0;
   static constexpr std::uint8_t kKeep = 1;
   static constexpr std::uint8_t kDrop = 2;
@@ -458,6 +469,8 @@ class SignificanceFilter final : public Filter {
     for (; next_ < size_; ++next_) {
       Entry& x = at(next_);
       if (x.event.t_us >= bound) break;
+      // The rings it reads were last touched up to L ago: start fetching those of the events decided next.
+      if (next_ + kPrefetchAhead < size_) impl_.prefetch_block(at(next_ + kPrefetchAhead).event);
       if (x.state != kPending) continue;
       const float joint = impl_.joint_ratio(x.event, x.past.data(), x.past_n);
       x.score = std::max(x.score, joint);

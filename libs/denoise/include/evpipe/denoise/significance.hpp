@@ -85,6 +85,8 @@ class Significance {
   [[nodiscard]] int past_line_count() const noexcept { return past_n_; }
   [[nodiscard]] const std::array<std::int32_t, 8>& past_line_ages_us() const noexcept { return past_ages_; }
   [[nodiscard]] float joint_ratio(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
+  /// Starts fetching the rings joint_ratio(e, ...) reads first.
+  void prefetch_block(const Event& e) const noexcept;
 
  private:
   void allocate();
