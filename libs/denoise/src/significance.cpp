@@ -333,7 +333,7 @@ void Significance::prefetch_block(const Event& e) const noexcept {
   for (std::int64_t dy = -1; dy <= 1; ++dy) {  // the 3×3 block (p + d); p + 2d is read only after a match
     const char* row = reinterpret_cast<const char*>(ring_.data() + (c + dy * stride_ - 1) * kRing);
     __builtin_prefetch(row);
-    __builtin_prefetch(row + 3 * kRing * sizeof(std::int32_t) - 1);
+    __builtin_prefetch(row + std::size_t{3} * kRing * sizeof(std::int32_t) - 1);
   }
 }
 
