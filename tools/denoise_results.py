@@ -42,8 +42,11 @@ class FilterRun:
 
 # The paper's filter (its section 4 parameters are evdenoise's defaults), its variants, then the baselines.
 FILTERS = [
-    FilterRun("significance", "significance", (), "evpipe's pipeline default: causal significance test against the "
-              "estimated BA rate (edge-line test, false-alarm rate 5e-4)"),
+    FilterRun("significance", "significance", (), "evpipe's pipeline default: significance test against the "
+              "estimated BA rate (edge-line test, false-alarm rate 5e-4), 20 ms look-ahead for the events the causal "
+              "test rejects (joint past + future edge lines)"),
+    FilterRun("significance, causal", "significance", ("lookahead_us=0",), "the same without look-ahead (decided on "
+              "arrival)"),
     FilterRun("curvature", "curvature", (), "paper parameters, stream mode (full ball, look-ahead)"),
     FilterRun("curvature, frames", "curvature", ("mode=frames",), "independent 30 ms frames, as the paper evaluates"),
     FilterRun("curvature, causal", "curvature", ("mode=causal",), "past half of the ball only, no look-ahead"),
@@ -118,6 +121,34 @@ READING_NOTES = [
     "the adaptive threshold (`adaptive=true`) already does the latter and improves F1 at 10 Hz/px. At low noise on "
     "fast scenes a plain density filter (`ynoise`, `density only`) has the better F1; the curvature stage pays off "
     "from ~3–5 Hz/px up.",
+    "* **significance's look-ahead** (`significance` vs `significance, causal`). The causal test lost ~7 % of "
+    "translating-rect's signal at ≥ 1 Hz/px but 1 % at 0.1 Hz/px (measured per lost event): the near-horizontal top "
+    "and bottom edges (normal speed 24 px/s) in the two pixel rows next to each corner, whose lines across the edge "
+    "run into the corner, and the first columns of the edges at start-up have exactly one half-line behind them "
+    "(along the row, 8.3 ms). One line is what noise gives too often once λ ≥ 1 Hz/px (U_1 < 8.3 ms), so the causal "
+    "test drops them. The joint test adds the half-lines ahead (the next pixels of the row at t + 8.3 and "
+    "t + 16.7 ms): two lines among 16 are improbable under noise, so these events are kept 20 ms later. A future "
+    "half-line needs (2 + ε)·s + δ₀ ≤ L, i.e. a step of at most 8.6 ms (edges faster than ~115 px/s along that "
+    "direction); slow edges (a step every 70–330 ms) gain nothing from it.",
+    "* **Slow edges and the oracle bound.** A slow edge's support is a few events placed exactly in time but spread "
+    "over hundreds of ms, and the filter, not knowing the motion, must find them as 2-pixel lines in any of 8 "
+    "directions at any age (with the false-alarm cost of that search and a 4-event ring per pixel). The oracle "
+    "(subsection of (e)) knows the motion and counts single predicted events: the gap between the two is what a "
+    "better statistic could still win; where the oracle itself is below a target (3 px/s at 1 Hz/px and, at the "
+    "target's edge, at 5 Hz/px), the neighbourhood does not hold the information: in a 1 s scene a 3 px/s edge has "
+    "crossed one pixel behind it after 333 ms and two after 667 ms, and with T = 0.5 s only one is in view.",
+    "* **dvxplorer-tonic (DVXplorer).** The online hot-pixel mask flags 44 pixels firing at up to 1.1 kHz (6 % of the "
+    "events); removing only them (`hotpixel`, keeping 94 %) lowers ESR from 1.69 to 1.07: the raw ESR of this file is "
+    "its hot pixels' (ESR rewards pixels with many events). The filters that remove them (`hotpixel`, "
+    "`significance`, `stcf`) land at 1.05–1.07; those at or above raw (`density only`, `curvature, as evpipe`, "
+    "`ynoise`) keep them (measured: 98 % / 98 % / 59 % of the 44 busiest pixels' events kept, `significance` 2 %), "
+    "since a hot pixel is its own dense neighbourhood. So ESR ≥ raw is not a denoising target on this file. The low "
+    "kept share of "
+    "`significance` is the edge-line test's timing tolerance: δ₀ = 2 ms describes a DAVIS346; on this file "
+    "δ₀ = 5 / 10 ms keeps 45 / 52 % (ESR within 0.01), i.e. the DVXplorer's timing spread between neighbouring "
+    "pixels looks wider. Its first 30 ms keep almost nothing (no history yet, and the conservative 10 Hz/px rate "
+    "assumed until the first 10 ms period closes). Not changed: δ₀ per sensor wants a measurement of that sensor's "
+    "jitter (or an online estimate of it), not a value fitted to this file.",
     "* **Causal mode** sees only the past half of the ball (half the exposure), and the past half of a moving edge "
     "is often rank-deficient, so with the paper's threshold and `singular=reject` it removes much more signal; it "
     "is the zero-latency option (use it with `singular=keep`), not the accurate one.",
@@ -138,6 +169,9 @@ class Ctx:
     evdenoise: str
     work: Path
     jobs: int
+    build: Path = Path()
+    img: Path = Path()  # where the --png strips go
+    out_dir: Path = Path()  # the results page's folder (links are relative to it)
     cache: dict = field(default_factory=dict)
 
 
@@ -261,6 +295,20 @@ def section_real(ctx: Ctx) -> list[str]:
         lines.append(f"| {f.label} | " + " | ".join(rows[f.label]) + " |")
     lines.append("| *random thinning to curvature's kept share (mean of 3 seeds)* | " + " | ".join(thinning) + " |")
     lines.append("")
+    # Before/after strips of evpipe's default on every recording (evdenoise --png: 30 ms frames, input on top).
+    lines += ["### significance before / after", "",
+              "`evdenoise IN OUT --filter significance --png FILE`: four 30 ms frames spread over the recording, the "
+              "input on top and what `significance` keeps below (red ON, blue OFF).", ""]
+    ctx.img.mkdir(parents=True, exist_ok=True)
+    for path, sensor in present:
+        png = ctx.img / f"denoise-{path.parent.name}-significance.png"
+        out = ctx.work / "out" / f"{path.parent.name}.png-run.aedat4"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        run([ctx.evdenoise, str(path), str(out), "--filter", "significance", "--png", str(png), "-q"])
+        out.unlink(missing_ok=True)
+        rel = os.path.relpath(png, ctx.out_dir)
+        lines += [f"{path.parent.name} ({sensor}), kept {100.0 * kept_share[(path, 'significance')]:.1f} %:", "",
+                  f"![{path.parent.name} significance]({rel})", ""]
     return lines
 
 
@@ -349,7 +397,39 @@ def section_slow(ctx: Ctx) -> list[str]:
                 cells.append(f"{fmt(m.get('f1'))} ({fmt(m.get('sr'))} / {fmt(m.get('nr'))})")
             lines.append(f"| {f.label} | " + " | ".join(cells) + " |")
         lines.append("")
+    lines += section_oracle(ctx)
     return lines
+
+
+ORACLE_SEEDS = "1,7"
+
+
+def section_oracle(ctx: Ctx) -> list[str]:
+    """tools/denoise_oracle.py: the best decision from significance's neighbourhood if the true motion were known."""
+    out_json = ctx.work / "oracle.json"
+    r = subprocess.run([sys.executable, str(ROOT / "tools" / "denoise_oracle.py"), "--make-slow", "--build",
+                        str(ctx.build), "--work", str(ctx.work / "oracle"), "--seeds", ORACLE_SEEDS, "--json",
+                        str(out_json)], capture_output=True, text=True)
+    lines = ["### Oracle bound on the slow edges", ""]
+    if r.returncode != 0:
+        return lines + [f"Not computed: `tools/denoise_oracle.py` failed ({r.returncode}): {r.stdout.strip()} "
+                        f"{r.stderr.strip()[-300:]}", ""]
+    ctx.cache["oracle"] = json.loads(out_json.read_text())
+    return lines + [
+        "`tools/denoise_oracle.py`: a detector that knows the true local edge motion (the evsim shape's nearest edge: "
+        "its normal n and normal speed v_n at the event) predicts where the edge through the event fired in "
+        "significance's own neighbourhood (the 5×5 block, from T = 0.5 s before to the 20 ms look-ahead after, the "
+        "same timing tolerance δ₀ + ε·|τ|), counts the predicted slots that hold an event of the same polarity, "
+        "and scores the event by the chance of that count under the known BA rate (Poisson-binomial). It uses "
+        "every event (no 4-event ring) and searches no direction or speed. *oracle at α*: kept when that chance is "
+        "≤ 5e-4 (significance's budget); **oracle best F1**: the best F1 over every threshold of its score. Seeds "
+        f"{ORACLE_SEEDS.replace(',', ' and ')} (same signal, different noise). It is a reference, not a theorem: "
+        "its straight-edge prediction ignores a rotating edge's curvature, and the count is not the only possible "
+        "statistic, so the filter can beat it (rotating bar at 3 Hz/px).",
+        "",
+        r.stdout.strip(),
+        "",
+    ]
 
 
 def significance_checks(ctx: Ctx, scenes) -> list[str]:
@@ -369,7 +449,7 @@ def significance_checks(ctx: Ctx, scenes) -> list[str]:
         verdict = "met" if v is not None and raw is not None and v >= raw else "NOT met"
         lines.append(f"* **ESR on {name} ({sensor}), {new} ≥ raw** — {verdict}: {new} {fmt(v)}, raw {fmt(raw)}.")
     by = ctx.cache.get("scenes", {})
-    others = [f.label for f in FILTERS if f.label not in (new, "hotpixel")]
+    others = [f.label for f in FILTERS if not f.label.startswith(new) and f.label != "hotpixel"]
     for hot in (0, 5):
         worse = []
         for (s, v) in scenes:
@@ -397,18 +477,25 @@ def significance_checks(ctx: Ctx, scenes) -> list[str]:
     lines.append(f"* **10 Hz/px, fast edges: F1 ≥ 0.8** — {'met' if all(x is not None and x >= 0.8 for x in ok10) else 'NOT met'}: "
                  + ", ".join(fmt(x) for x in ok10) + ".")
     slow = ctx.cache.get("slow", {})
+    oracle = {(c["scene"], c["speed"], c["rate"]): c["oracle_best"][0] for c in ctx.cache.get("oracle", [])
+              if c["seed"] == 1}
     for rate, goal in ((0.1, 0.8), (1, 0.8), (5, 0.6)):
         vals = [slow.get(((s, v, rate), new), {}).get("f1") for s, v in SLOW_SCENES]
         bound = [slow.get(((s, v, 0), new), {}).get("f1") for s, v in SLOW_SCENES]
+        best = [oracle.get((s, v, rate)) for s, v in SLOW_SCENES]
         met = all(x is not None and x >= goal for x in vals)
+        unreachable = [f"{s} ×{v}" for (s, v), o in zip(SLOW_SCENES, best) if o is not None and o < goal]
         lines.append(f"* **Slow edges at {rate} Hz/px: F1 ≥ {goal}** — {'met' if met else 'NOT met'}: " +
-                     ", ".join(f"{s} ×{v} {fmt(x)} (no-noise bound {fmt(b)})" for (s, v), x, b in zip(SLOW_SCENES, vals, bound)) + ".")
+                     ", ".join(f"{s} ×{v} {fmt(x)} (no-noise bound {fmt(b)}, oracle {fmt(o)})"
+                               for (s, v), x, b, o in zip(SLOW_SCENES, vals, bound, best)) + "." +
+                     (f" Out of reach of this neighbourhood (oracle best F1 < {goal}): {', '.join(unreachable)}."
+                      if unreachable else ""))
     aucs = {}
     for f in FILTERS:
         vals = [by.get(((s, v, 5, 0), f.label), {}).get("auc") for s, v in scenes]
         if all(x is not None for x in vals):
             aucs[f.label] = statistics.fmean(vals)
-    best_other = max((v for k, v in aucs.items() if k != new), default=None)
+    best_other = max((v for k, v in aucs.items() if not k.startswith(new)), default=None)
     lines.append(f"* **ROC AUC at 5 Hz/px above every scored filter** — "
                  f"{'met' if new in aucs and best_other is not None and aucs[new] > best_other else 'NOT met'}: "
                  f"{new} {fmt(aucs.get(new))}, best other {fmt(best_other)}.")
@@ -503,7 +590,7 @@ def main() -> None:
     a = ap.parse_args()
     build = Path(a.build)
     ctx = Ctx(str(build / "apps" / "evsim" / "evsim"), str(build / "apps" / "evdenoise" / "evdenoise"), Path(a.work),
-              a.jobs)
+              a.jobs, build, Path(a.out).resolve().parent / "img", Path(a.out).resolve().parent)
     for exe in (ctx.evsim, ctx.evdenoise):
         if not os.access(exe, os.X_OK):
             sys.exit(f"denoise_results.py: {exe} is not built (cmake --build {build} --target evsim evdenoise)")

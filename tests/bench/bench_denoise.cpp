@@ -130,7 +130,9 @@ void run(benchmark::State& state, const Dataset* d, const std::string& filter, c
       f->push(EventSpan(d->events).subspan(i, std::min(kChunk, d->events.size() - i)), out);
       kept += denoise::count_kept(out);
     }
-    f->finish(out);
+    out.clear();
+    f->finish(out);  // a look-ahead filter's last decisions
+    kept += denoise::count_kept(out);
     benchmark::DoNotOptimize(kept);
   }
   const auto n = static_cast<double>(d->events.size());
@@ -152,11 +154,17 @@ int main(int argc, char** argv) {
   datasets.push_back(synthetic());
   datasets.push_back(synth10());
   const std::vector<std::pair<std::string, Settings>> filters = {
-      {"baf", {}},      {"baf", {{"duration_us", "10000"}}},
-      {"knoise", {}},   {"knoise", {{"variant", "cuke"}}},
-      {"ynoise", {}},   {"stcf", {}},
-      {"dwf", {}},      {"dwf", {{"variant", "jaer"}}},
-      {"hotpixel", {}}, {"significance", {}},
+      {"baf", {}},
+      {"baf", {{"duration_us", "10000"}}},
+      {"knoise", {}},
+      {"knoise", {{"variant", "cuke"}}},
+      {"ynoise", {}},
+      {"stcf", {}},
+      {"dwf", {}},
+      {"dwf", {{"variant", "jaer"}}},
+      {"hotpixel", {}},
+      {"significance", {}},
+      {"significance", {{"lookahead_us", "0"}}},  // the causal option
   };
   for (const Dataset& d : datasets) {
     std::fprintf(stderr, "bench_denoise: %s: %zu events, %.2f s\n", d.name.c_str(), d.events.size(),

@@ -1,5 +1,6 @@
-// Significance filter: each term on hand-built event sets (isolated event, slow edge, hot pixel, burst, recency),
-// the thresholds' noise model, the BA rate estimate, and stream = batch.
+// Significance filter: each term on hand-built event sets (isolated event, slow edge, hot pixel, burst, recency, an
+// edge entering with no history and a corner for the look-ahead), the thresholds' noise model, the BA rate estimate,
+// and stream = batch.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -286,6 +287,178 @@ TEST(Significance, VectorKernelsKeepTheWalksRunningLowerBound) {
   }
 }
 
+// --- The joint (look-ahead) edge-line test -------------------------------------------------------------------------
+
+std::unique_ptr<Filter> lookahead_filter(double rate_hz, std::int64_t lookahead_us) {
+  SignificanceOptions o = at_rate(rate_hz);
+  o.lookahead_us = lookahead_us;
+  return make_significance(kDavis346, o);
+}
+
+TEST(SignificanceLookahead, EdgeEnteringWithNoHistoryIsKept) {
+  // A slightly tilted 120 px/s edge entering the view at column 50: column c, row r fires at c / 120 s + r · 3 ms.
+  // At 5 Hz/px one past line (along the edge, 3 ms) is not enough (U_1 < 1 ms) and column 51 has no second one, so
+  // the causal test drops it; with the 20 ms look-ahead the lines ahead (along the row, along the edge) join.
+  std::vector<Event> ev;
+  for (int c = 0; c < 6; ++c) {
+    for (int r = 0; r < 10; ++r) {
+      ev.push_back({1'000'000 + std::llround(c / 120.0 * 1e6) + r * 3'000, static_cast<std::uint16_t>(50 + c),
+                    static_cast<std::uint16_t>(80 + r), true});
+    }
+  }
+  std::stable_sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  const auto causal = run_filter(*lookahead_filter(5.0, 0), ev);
+  const auto ahead = run_filter(*lookahead_filter(5.0, 20'000), ev);
+  ASSERT_EQ(ahead.size(), ev.size());
+  int entering_causal = 0;
+  int entering_ahead = 0;
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    if (ev[i].x == 51 && ev[i].y >= 82 && ev[i].y <= 87) {
+      entering_causal += causal.keep[i];
+      entering_ahead += ahead.keep[i];
+    }
+    if (causal.keep[i] != 0) {
+      EXPECT_EQ(ahead.keep[i], 1);  // the causal decisions stand
+    }
+    if (ahead.keep[i] != 0) {
+      EXPECT_GE(ahead.score[i], 1.0F);
+    }
+  }
+  EXPECT_EQ(entering_causal, 0);
+  EXPECT_EQ(entering_ahead, 6);
+  EXPECT_GT(count_kept(ahead), count_kept(causal));
+}
+
+TEST(SignificanceLookahead, CornerWithOneLineBehindAndOneAheadIsKept) {
+  // One row of a 120 px/s edge (one line through each pixel along the row): at 5 Hz/px one past line at 8.3 ms is
+  // not enough (U_1 < 1 ms), one past + one future line is (V_2 > 8.3 ms).
+  SignificanceOptions o = at_rate(5.0);
+  const Significance probe(kDavis346, o);
+  ASSERT_LT(probe.line_thresholds_us()[0], 8'333);
+  ASSERT_GT(probe.joint_thresholds_us()[1], 8'334);
+  const auto ev = edge(120.0, 50, 6, 80, 1, 1'000'000);
+  const auto causal = run_filter(*lookahead_filter(5.0, 0), ev);
+  const auto ahead = run_filter(*lookahead_filter(5.0, 20'000), ev);
+  EXPECT_EQ(count_kept(causal), 0U);
+  // Column 52 (2 behind, 2 ahead) and 53 (3 behind, 2 ahead: 16.7 ms ahead is within L); 50/51 have one line at most.
+  EXPECT_EQ(ahead.keep, (std::vector<std::uint8_t>{0, 0, 1, 1, 0, 0}));
+}
+
+TEST(SignificanceLookahead, IsolatedHotPixelAndBurstAreDropped) {
+  std::vector<Event> ev;
+  ev.push_back({1'000'000, 100, 100, true});                                                  // isolated
+  for (int i = 0; i < 400; ++i) ev.push_back({1'100'000 + i * 5'000, 200, 150, i % 2 == 0});  // hot pixel
+  for (int i = 0; i < 8; ++i) ev.push_back({3'200'000 + i * 10, 60, 60, true});               // burst
+  ev.push_back({3'200'200, 61, 60, true});
+  ev.push_back({3'200'300, 201, 150, true});  // beside the hot pixel
+  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  const auto d = run_filter(*lookahead_filter(5.0, 20'000), ev);
+  EXPECT_EQ(count_kept(d), 0U);
+}
+
+TEST(SignificanceLookahead, SlowEdgeKeptAsByTheCausalTest) {
+  const auto ev = edge(3.0, 50, 5, 80, 10, 1'000'000);
+  const auto causal = run_filter(*lookahead_filter(1.0, 0), ev);
+  const auto ahead = run_filter(*lookahead_filter(1.0, 20'000), ev);
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    if (causal.keep[i] != 0) {
+      EXPECT_EQ(ahead.keep[i], 1);
+    }
+  }
+  EXPECT_GE(count_kept(ahead), count_kept(causal));
+  EXPECT_GT(count_kept(causal), 20U);
+}
+
+TEST(SignificanceLookahead, DecidesWithinTheLookaheadAndStreamEqualsBatch) {
+  std::mt19937_64 rng(11);
+  auto ev = edge(120.0, 30, 60, 40, 40, 100'000);
+  const auto e2 = edge(60.0, 200, 30, 150, 20, 300'000);
+  ev.insert(ev.end(), e2.begin(), e2.end());
+  std::uniform_int_distribution<int> x(0, 345), y(0, 259);
+  std::uniform_int_distribution<std::int64_t> t(0, 1'000'000);
+  for (int i = 0; i < 60'000; ++i) {
+    ev.push_back({t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), i % 2 == 0});
+  }
+  std::stable_sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  auto batch = make_filter("significance", {}, kDavis346);
+  EXPECT_EQ(batch->latency_us(), 20'000);
+  const auto a = run_filter(*batch, ev);
+  for (const std::size_t chunk : {std::size_t{1}, std::size_t{7}, std::size_t{1000}}) {
+    auto stream = make_filter("significance", {}, kDavis346);
+    const auto b = run_filter(*stream, ev, chunk);
+    EXPECT_EQ(a.keep, b.keep) << chunk;
+    EXPECT_EQ(a.score, b.score) << chunk;
+  }
+  // Pushed one at a time, an event is decided once an event later than its t + L arrives: never more than L waits.
+  auto live = make_filter("significance", {}, kDavis346);
+  Decisions d;
+  for (std::size_t i = 0; i < ev.size(); ++i) {
+    live->push(EventSpan(&ev[i], 1), d);
+    const std::size_t waiting = i + 1 - d.size();
+    if (waiting > 0) {
+      EXPECT_LE(ev[i].t_us - ev[d.size()].t_us, 20'000) << i;
+    }
+    EXPECT_EQ(waiting, live->pending());
+  }
+  live->finish(d);
+  EXPECT_EQ(d.keep, a.keep);
+  EXPECT_GT(count_kept(a), 2000U);
+}
+
+TEST(SignificanceLookahead, CausalOptionIsTheCausalTestAlone) {
+  std::mt19937_64 rng(5);
+  auto ev = edge(120.0, 30, 60, 40, 40, 100'000);
+  std::uniform_int_distribution<int> x(0, 345), y(0, 259);
+  std::uniform_int_distribution<std::int64_t> t(0, 1'000'000);
+  for (int i = 0; i < 30'000; ++i) {
+    ev.push_back({t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), i % 2 == 0});
+  }
+  std::stable_sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  auto causal = make_filter("significance", {{"lookahead_us", "0"}}, kDavis346);
+  EXPECT_EQ(causal->latency_us(), 0);
+  const auto d = run_filter(*causal, ev);
+  SignificanceOptions o;
+  o.lookahead_us = 20'000;  // the causal test's thresholds do not depend on whether the look-ahead runs
+  Significance f(kDavis346, o);
+  for (std::size_t i = 0; i < ev.size(); ++i) ASSERT_EQ(d.keep[i], f.accept(ev[i]) ? 1 : 0) << i;
+}
+
+TEST(SignificanceLookahead, JointThresholdsFollowTheNoiseModel) {
+  SignificanceOptions o = at_rate(1.0);
+  Significance f(kDavis346, o);
+  const auto low = f.joint_thresholds_us();
+  f.set_rate(10.0);
+  const auto high = f.joint_thresholds_us();
+  for (std::size_t m = 0; m < 16; ++m) {
+    EXPECT_LE(high[m], low[m]);
+    EXPECT_LE(low[m], 500'000);
+    if (m > 0) {
+      EXPECT_GE(low[m], low[m - 1]);
+    }
+    if (m < 8) {
+      EXPECT_LE(high[m], f.line_thresholds_us()[m]);  // 16 half-lines: stricter than 8 for the same m
+    }
+  }
+  o.lookahead_us = 0;
+  const Significance g(kDavis346, o);
+  for (const auto v : g.joint_thresholds_us()) EXPECT_EQ(v, 0);
+}
+
+TEST(SignificanceLookahead, FalseAlarmsOnPureNoise) {
+  std::mt19937_64 rng(9);
+  const double rate = 5.0;
+  const auto n = static_cast<std::size_t>(rate * kDavis346.width * kDavis346.height * 2.0);
+  std::vector<Event> ev(n);
+  std::uniform_int_distribution<int> x(0, kDavis346.width - 1), y(0, kDavis346.height - 1);
+  std::uniform_int_distribution<std::int64_t> t(0, 2'000'000);
+  std::bernoulli_distribution pol(0.5);
+  for (auto& e : ev) e = {t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), pol(rng)};
+  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  auto f = make_filter("significance", {}, kDavis346);
+  const auto d = run_filter(*f, ev);
+  EXPECT_LE(static_cast<double>(count_kept(d)), 2.0 * SignificanceOptions{}.alpha * static_cast<double>(n) + 10.0);
+}
+
 TEST(Significance, ListedWithItsParameters) {
   const FilterSpec* s = find_filter("significance");
   ASSERT_NE(s, nullptr);
@@ -293,6 +466,7 @@ TEST(Significance, ListedWithItsParameters) {
   EXPECT_TRUE(std::any_of(params.begin(), params.end(), [](const ParamInfo& p) { return p.key == "alpha"; }));
   EXPECT_THROW((void)make_filter("significance", {{"alpha", "0"}}, kDavis346), std::invalid_argument);
   EXPECT_THROW((void)make_filter("significance", {{"alpha", "0.9"}}, kDavis346), std::invalid_argument);
+  EXPECT_THROW((void)make_filter("significance", {{"lookahead_us", "-1"}}, kDavis346), std::invalid_argument);
 }
 
 }  // namespace

@@ -50,6 +50,17 @@ double binomial_quantile(int n, int k, double target) noexcept {
   return lo;
 }
 
+/// The age U at which a direction's noise-match probability p(U) = 1 − exp(−(λ²/2)(δ₀U + εU²/2)) reaches `p`
+/// (docs/algorithms.md eq. 2), capped at T; seconds.
+double line_age_s(double p, double rate_hz, double jitter_s, double eps, double T) noexcept {
+  if (rate_hz <= 0.0) return T;
+  const double pairs = -std::log1p(-p);
+  const double c = 2.0 * pairs / (rate_hz * rate_hz);  // jitter·U + eps·U²/2 = c
+  const double u_s = eps > 0.0 ? (-jitter_s + std::sqrt(jitter_s * jitter_s + 2.0 * eps * c)) / eps
+                               : (jitter_s > 0.0 ? c / jitter_s : T);
+  return std::min(u_s, T);
+}
+
 /// Sorting network (19 compare-exchanges) for 8 values, on locals so that each exchange is a min and a max.
 inline void sort8(std::array<std::int32_t, 8>& v) noexcept {
   std::int32_t a0 = v[0], a1 = v[1], a2 = v[2], a3 = v[3], a4 = v[4], a5 = v[5], a6 = v[6], a7 = v[7];
@@ -248,9 +259,21 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
   window_us_ = static_cast<std::int32_t>(std::clamp(1e6 / options_.slowest_speed_px_s, 1.0, 1e8));
   jitter_us_ = static_cast<std::int32_t>(std::clamp<std::int64_t>(options_.timing_jitter_us, 0, 100'000'000));
   precision_ = static_cast<float>(options_.edge_precision_px);
-  // Both tests' per-m quantiles depend on alpha only: P(Binomial(8, q_m) >= m) = alpha / 2 / 8.
+  lookahead_us_ = options_.edge_line
+                      ? static_cast<std::int32_t>(std::clamp<std::int64_t>(options_.lookahead_us, 0, 10'000'000))
+                      : 0;
+  // alpha is split over the tests that run, at least in halves (the causal edge-line test keeps alpha / 2 whether
+  // or not the optional recency and look-ahead tests run; with all three, alpha / 3 each).
+  const int tests = 1 + (options_.recency_max_us > 0 ? 1 : 0) + (lookahead_us_ > 0 ? 1 : 0);
+  const double share = options_.alpha / std::max(2, tests);
+  // Both causal tests' per-m quantiles depend on alpha only: P(Binomial(8, q_m) >= m) = share / 8.
   for (int m = 1; m <= kNeighbours; ++m) {
-    quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, options_.alpha / 2.0 / kNeighbours);
+    quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, share / kNeighbours);
+  }
+  // The joint test's 16 half-lines (8 past, 8 future): P(Binomial(16, q_m) >= m) = share / 16.
+  for (int m = 1; m <= 2 * kNeighbours; ++m) {
+    joint_quantile_[static_cast<std::size_t>(m - 1)] =
+        lookahead_us_ > 0 ? binomial_quantile(2 * kNeighbours, m, share / (2 * kNeighbours)) : 0.0;
   }
   static_assert(kRing == 4, "the vector kernels hold one ring in 4 lanes");
   kernel_ = pick_kernel(kScalar, kSse4, kAvx2);
@@ -310,6 +333,19 @@ void Significance::set_rate(double rate_hz) noexcept {
     }
     line_us_[static_cast<std::size_t>(m - 1)] = static_cast<std::int32_t>(u_s * 1e6);
   }
+  set_joint_thresholds();
+}
+
+void Significance::set_joint_thresholds() noexcept {
+  // The same match probability p(V) per half-line as the causal test (a future half-line is the past one mirrored
+  // in time: p + d at t + s, p + 2d at t + 2s), 16 independent half-lines (disjoint pixels or disjoint times).
+  for (std::size_t m = 0; m < joint_us_.size(); ++m) {
+    joint_us_[m] = options_.edge_line && lookahead_us_ > 0
+                       ? static_cast<std::int32_t>(line_age_s(joint_quantile_[m], rate_hz_, jitter_us_ * 1e-6,
+                                                              options_.edge_precision_px, window_us_ * 1e-6) *
+                                                   1e6)
+                       : 0;
+  }
 }
 
 void Significance::update_rate(std::int64_t t_us) noexcept {
@@ -360,7 +396,7 @@ void Significance::rebase(std::int64_t t_us) noexcept {
   base_us_ += shift;
 }
 
-float Significance::edge_lines_scalar(std::size_t centre, std::int32_t now, int polarity) const noexcept {
+float Significance::edge_lines_scalar(std::size_t centre, std::int32_t now, int polarity) noexcept {
   const std::int32_t window = line_us_[7];
   std::array<std::int32_t, 8> sorted{};  // matched ages so far, ascending
   int n = 0;
@@ -407,6 +443,8 @@ float Significance::edge_lines_scalar(std::size_t centre, std::int32_t now, int 
     }
     if (decided) break;
   }
+  past_ages_ = sorted;  // all the past matches when not decided (the look-ahead joins them with the future ones)
+  past_n_ = n;
   for (int m = 0; m < n; ++m) {
     const auto mu = static_cast<std::size_t>(m);
     ratio = std::max(ratio, static_cast<float>(line_us_[mu]) / static_cast<float>(std::max(sorted[mu], 1)));
@@ -414,7 +452,7 @@ float Significance::edge_lines_scalar(std::size_t centre, std::int32_t now, int 
   return ratio;
 }
 
-float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept {
+float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarity) noexcept {
   if (kernel_ == kScalar || !ordered_) return edge_lines_scalar(centre, now, polarity);
   std::array<std::int32_t, 9> found;  // NOLINT(cppcoreguidelines-pro-type-member-init): matched ages, found[0..n)
   std::size_t n = 0;
@@ -428,15 +466,24 @@ float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarit
   const auto margin = [this](std::size_t m, std::int32_t u) {
     return static_cast<float>(line_us_[m]) / static_cast<float>(std::max(u, 1));
   };
+  // The look-ahead's past half-lines: the matches ascending, then zeros (as the scalar walk leaves them).
+  past_ages_ = {};
+  past_n_ = static_cast<int>(n);
   if (n == 0) return 0.0F;
-  if (n == 1) return margin(0, found[0]);
+  if (n == 1) {
+    past_ages_[0] = found[0];
+    return margin(0, found[0]);
+  }
   if (n == 2) {
-    return std::max(margin(0, std::min(found[0], found[1])), margin(1, std::max(found[0], found[1])));
+    past_ages_[0] = std::min(found[0], found[1]);
+    past_ages_[1] = std::max(found[0], found[1]);
+    return std::max(margin(0, past_ages_[0]), margin(1, past_ages_[1]));
   }
   std::array<std::int32_t, 8> sorted{};  // the matches, then no-match markers (sorted last)
   sorted.fill(std::numeric_limits<std::int32_t>::max());
   std::copy_n(found.begin(), n, sorted.begin());
   sort8(sorted);
+  std::copy_n(sorted.begin(), n, past_ages_.begin());
   float ratio = 0.0F;
   for (std::size_t m = 0; m < n; ++m) {
     ratio = std::max(ratio, margin(m, sorted[m]));
@@ -488,6 +535,7 @@ bool Significance::accept(const Event& e) noexcept {
   }
   bool keep = ratio >= 1.0F;
   float score = ratio;
+  past_n_ = 0;
   const int polarity = e.polarity ? 1 : 0;
   if (keep) {
     ++kept_recency_;
@@ -510,6 +558,185 @@ bool Significance::accept(const Event& e) noexcept {
   return keep;
 }
 
+void Significance::prefetch_block(const Event& e) const noexcept {
+  if (!geometry_.contains(e.x, e.y)) return;
+  const std::int64_t c = (e.y + kPad) * stride_ + (e.x + kPad);
+  for (std::int64_t dy = -1; dy <= 1; ++dy) {  // the 3×3 block (p + d); p + 2d is read only after a match
+    const char* row = reinterpret_cast<const char*>(ring_.data() + (c + dy * stride_ - 1) * kRing);
+    __builtin_prefetch(row);
+    __builtin_prefetch(row + std::size_t{3} * kRing * sizeof(std::int32_t) - 1);
+  }
+}
+
+int Significance::future_lines(std::size_t centre, std::int32_t then, int polarity,
+                               std::array<std::int32_t, 8>& ages) const noexcept {
+  // Direction d: p + d fired at then + s and p + 2d at then + s2 with |s2 − 2s| <= δ₀ + ε·s, both of the event's
+  // polarity, 0 < s, s2 <= L (the rings hold nothing later than then + L when this runs). Smallest such s.
+  static constexpr std::array<std::int8_t, 8> kDx = {-1, 0, 1, -1, 1, -1, 0, 1};
+  static constexpr std::array<std::int8_t, 8> kDy = {-1, -1, -1, 0, 0, 1, 1, 1};
+  int n = 0;
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::int64_t off = kDy[i] * stride_ + kDx[i];
+    const std::int32_t* r1 = ring_.data() + (static_cast<std::int64_t>(centre) + off) * kRing;
+    const std::int32_t* r2 = ring_.data() + (static_cast<std::int64_t>(centre) + 2 * off) * kRing;
+    std::int32_t found = kAgeCap;
+    for (int a = 0; a < kRing; ++a) {  // newest first: s decreases
+      const std::int32_t v1 = r1[a];
+      const std::int32_t s1 = (v1 >> 1) - then;
+      if (s1 <= 0) break;
+      if (s1 > lookahead_us_ || (v1 & 1) != polarity) continue;
+      const std::int32_t tol = jitter_us_ + static_cast<std::int32_t>(precision_ * static_cast<float>(s1));
+      for (int b = 0; b < kRing; ++b) {
+        const std::int32_t v2 = r2[b];
+        const std::int32_t s2 = (v2 >> 1) - then;
+        if (s2 <= 0) break;
+        if (s2 <= lookahead_us_ && (v2 & 1) == polarity && std::abs(s2 - 2 * s1) <= tol) {
+          found = s1;
+          break;
+        }
+      }
+    }
+    if (found == kAgeCap) continue;
+    int j = n++;
+    for (; j > 0 && ages[static_cast<std::size_t>(j - 1)] > found; --j) {
+      ages[static_cast<std::size_t>(j)] = ages[static_cast<std::size_t>(j - 1)];
+    }
+    ages[static_cast<std::size_t>(j)] = found;
+  }
+  return n;
+}
+
+float Significance::joint_ratio(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept {
+  if (lookahead_us_ <= 0 || !options_.edge_line || !geometry_.contains(e.x, e.y)) return 0.0F;
+  const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
+  std::array<std::int32_t, 8> future{};
+  const int nf = future_lines(centre, static_cast<std::int32_t>(e.t_us - base_us_), e.polarity ? 1 : 0, future);
+  // Merge the two ascending lists; the ratio max_m V_m / w_(m) over the merged ages.
+  float ratio = 0.0F;
+  int i = 0;
+  int j = 0;
+  for (std::size_t m = 0; i < past_count || j < nf; ++m) {
+    const bool take_past = j >= nf || (i < past_count && past_ages[i] <= future[static_cast<std::size_t>(j)]);
+    const std::int32_t w = take_past ? past_ages[i++] : future[static_cast<std::size_t>(j++)];
+    ratio = std::max(ratio, static_cast<float>(joint_us_[m]) / static_cast<float>(std::max(w, 1)));
+  }
+  return ratio;
+}
+
+namespace {
+
+/// Look-ahead driver: every event enters a FIFO (one slot, reused: a ring that only grows, to the events of one
+/// look-ahead span); an event the causal tests reject is decided once the first event later than t + L arrives
+/// (or at finish), with Significance::joint_ratio; decided events leave the FIFO's front in input order.
+class SignificanceFilter final : public Filter {
+ public:
+  SignificanceFilter(const SensorGeometry& geometry, const SignificanceOptions& options)
+      : impl_(geometry, options), lookahead_us_(options.lookahead_us) {}
+
+  [[nodiscard]] std::string_view name() const noexcept override { return "significance"; }
+  void push(EventSpan events, Decisions& out) override {
+    for (const Event& e : events) {
+      decide_before(e.t_us - lookahead_us_);
+      release(out);
+      const bool keep = impl_.accept(e);
+      const float score = impl_.last_score();
+      if (size_ == 0 && keep) {  // nothing waits: out at once
+        out.keep.push_back(1);
+        out.score.push_back(score);
+        continue;
+      }
+      Entry& slot = append();
+      slot.event = e;
+      slot.score = score;
+      slot.state = keep ? kKeep : kPending;
+      slot.past_n = static_cast<std::uint8_t>(keep ? 0 : impl_.past_line_count());
+      if (!keep) slot.past = impl_.past_line_ages_us();
+    }
+    release(out);
+  }
+  void finish(Decisions& out) override {
+    decide_before(std::numeric_limits<std::int64_t>::max());
+    release(out);
+  }
+  void reset() override {
+    impl_.reset();
+    head_ = size_ = next_ = 0;
+  }
+  [[nodiscard]] std::size_t pending() const noexcept override { return size_; }
+  [[nodiscard]] std::int64_t latency_us() const noexcept override { return lookahead_us_; }
+  [[nodiscard]] bool has_score() const noexcept override { return true; }
+  [[nodiscard]] std::vector<ReportItem> report() const override {
+    auto r = impl_.report();
+    r.push_back({"kept_lookahead", static_cast<double>(kept_joint_)});
+    return r;
+  }
+
+ private:
+  static constexpr std::size_t kPrefetchAhead = 4;
+  static constexpr std::uint8_t kPending = 0;
+  static constexpr std::uint8_t kKeep = 1;
+  static constexpr std::uint8_t kDrop = 2;
+  struct Entry {
+    Event event;
+    float score = 0.0F;
+    std::uint8_t state = kPending;
+    std::uint8_t past_n = 0;
+    std::array<std::int32_t, 8> past{};
+  };
+
+  Entry& at(std::size_t i) noexcept { return fifo_[(head_ + i) & (fifo_.size() - 1)]; }
+  Entry& append() {
+    if (size_ == fifo_.size()) {  // grow (power of two), unrolling the ring
+      std::vector<Entry> bigger(std::max<std::size_t>(1024, 2 * fifo_.size()));
+      for (std::size_t i = 0; i < size_; ++i) bigger[i] = at(i);
+      fifo_.swap(bigger);
+      head_ = 0;
+    }
+    return at(size_++);
+  }
+  /// Decides every waiting event with t_us < `bound` (= the new event's time − L): the rings then hold exactly the
+  /// events up to its t + L.
+  void decide_before(std::int64_t bound) noexcept {
+    for (; next_ < size_; ++next_) {
+      Entry& x = at(next_);
+      if (x.event.t_us >= bound) break;
+      // The rings it reads were last touched up to L ago: start fetching those of the events decided next.
+      if (next_ + kPrefetchAhead < size_) impl_.prefetch_block(at(next_ + kPrefetchAhead).event);
+      if (x.state != kPending) continue;
+      const float joint = impl_.joint_ratio(x.event, x.past.data(), x.past_n);
+      x.score = std::max(x.score, joint);
+      x.state = joint >= 1.0F ? kKeep : kDrop;
+      kept_joint_ += joint >= 1.0F ? 1 : 0;
+    }
+  }
+  void release(Decisions& out) {
+    while (size_ > 0) {
+      const Entry& x = at(0);
+      if (x.state == kPending) break;
+      out.keep.push_back(x.state == kKeep ? 1 : 0);
+      out.score.push_back(x.score);
+      head_ = (head_ + 1) & (fifo_.size() - 1);
+      --size_;
+      next_ = next_ > 0 ? next_ - 1 : 0;
+    }
+  }
+
+  Significance impl_;
+  std::int64_t lookahead_us_;
+  std::vector<Entry> fifo_;
+  std::size_t head_ = 0;
+  std::size_t size_ = 0;
+  std::size_t next_ = 0;  // first entry not examined by decide_before
+  std::uint64_t kept_joint_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<Filter> make_significance(const SensorGeometry& geometry, const SignificanceOptions& options) {
+  if (options.lookahead_us > 0 && options.edge_line) return std::make_unique<SignificanceFilter>(geometry, options);
+  return std::make_unique<PerEventFilter<Significance>>("significance", geometry, options);
+}
+
 std::vector<ReportItem> Significance::report() const {
   return {{"noise_rate_hz", rate_hz_},
           {"kept_recency", static_cast<double>(kept_recency_)},
@@ -519,7 +746,8 @@ std::vector<ReportItem> Significance::report() const {
 
 FilterSpec significance_spec() {
   return {"significance",
-          "keeps events whose support is improbable under the estimated BA rate (false-alarm rate alpha); causal",
+          "keeps events whose support is improbable under the estimated BA rate (false-alarm rate alpha); look-ahead "
+          "lookahead_us (0: causal)",
           [](Params& p, const SensorGeometry& g) -> std::unique_ptr<Filter> {
             SignificanceOptions o;
             o.alpha = p.real("alpha", o.alpha, "false-alarm rate: share of background-activity events kept");
@@ -546,7 +774,10 @@ FilterSpec significance_spec() {
                                          "longest neighbour age the recency test uses (us; 0 = no recency test)");
             p.require_range("recency_max_us", static_cast<double>(o.recency_max_us), 0.0, 1e9);
             o.edge_line = p.boolean("edge_line", o.edge_line, "edge-line test for slow edges (false: recency only)");
-            return std::make_unique<PerEventFilter<Significance>>("significance", g, o);
+            o.lookahead_us = p.integer("lookahead_us", o.lookahead_us,
+                                       "look-ahead for the joint past + future edge-line test (us; 0 = causal)");
+            p.require_range("lookahead_us", static_cast<double>(o.lookahead_us), 0.0, 1e6);
+            return make_significance(g, o);
           }};
 }
 

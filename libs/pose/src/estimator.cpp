@@ -169,6 +169,8 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
   ++counters_.init_attempts;
   InitJob job;
   job.events.assign(events.begin(), events.end());
+  const EventSpan fresh = tracking_events(window, t_end_us, recent_);
+  if (fresh.data() != events.data() || fresh.size() != events.size()) job.fresh.assign(fresh.begin(), fresh.end());
   job.t_us = t_end_us;
   job.generation = generation_;
   // After a loss search around the last good pose; before the first success around the configured prior.
@@ -196,12 +198,24 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
     out.note = "initialisation: " + init.message;
     return out;
   }
-  // Polish the initial pose on the job's events with the tracker so the first published pose carries a robust
-  // scale and a covariance like every later one.
+  // Polish the initial pose with the tracker so the first published pose carries a robust scale and a covariance
+  // like every later one, and is measured on the events a tracking update at job.t_us uses: a pose found on the
+  // accumulated events is polished on them first (the nearer start), then on the fresh ones (the accumulation
+  // spans up to init_accumulate_us of the target's motion, the fresh events at most track_max_span_us).
   out.polished = track_window(job.events, map_, model_, init.T_cam_model, options_.track);
   if (!out.polished.healthy) {
     out.note = "initialisation found a pose but tracking rejected it: " + out.polished.reason;
     return out;
+  }
+  if (!job.fresh.empty()) {
+    TrackUpdate now = track_window(job.fresh, map_, model_, out.polished.T_cam_model, options_.track);
+    out.measured_at_t = now.healthy;
+    if (now.healthy) {
+      out.polished = std::move(now);
+    } else {
+      out.note =
+          "initialised on the accumulated events; the window's own events did not confirm the pose: " + now.reason;
+    }
   }
   out.ok = true;
   return out;
@@ -223,6 +237,10 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
   publish_update(u, out);
   out.t_last_update_us = outcome.t_us;
   out.initialised_now = true;
+  if (!outcome.measured_at_t) {
+    out.pose_valid = false;  // tracking from here, but this window did not measure the pose (InitOutcome)
+    out.note = outcome.note;
+  }
   track_.confirmed = track_.healthy_in_a_row >= options_.confirm_windows;
   unconfirmed(out);
   return out;

@@ -330,7 +330,10 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
     }
   }
   double gate_px = o.association.gate_px;
-  const double sigma_floor_n = 0.01 / f;  // residuals are pixel-quantised: never a scale below 0.01 px
+  // Events sit at pixel centres: an edge's crossing point is known to a pixel, uniform within it, so no scale of the
+  // residuals is below the quantisation's standard deviation 1/sqrt(12) px (a smaller one comes from events of a
+  // few edges in single pixel columns whose common offset is a bias, not a measurement; docs/algorithms.md).
+  const double sigma_floor_n = 1.0 / std::sqrt(12.0) / f;
   std::vector<ProjectedSegment> segs;
   std::vector<Association> assoc;
   double sigma_n = 0.0;

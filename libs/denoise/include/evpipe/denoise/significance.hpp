@@ -1,11 +1,13 @@
 #pragma once
 // Significance filter: keeps an event when its support is improbable under background activity (BA) alone, at a
 // set false-alarm rate alpha, against the BA rate estimated online from the stream (docs/algorithms.md,
-// "Significance filter"). Causal (decides each event on arrival: zero look-ahead), O(1) per event.
+// "Significance filter"). O(1) per event. Decides on arrival what the causal tests keep; with lookahead_us = L > 0
+// (default 20 ms) an event they reject is decided at t + L by the joint test (make_significance; decision latency L).
 //
-// Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Two tests, each
-// at alpha / 2 (so that a noise event passes with probability <= alpha); the edge-line test decides by default, the
-// recency test is optional (recency_max_us > 0):
+// Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Up to three
+// tests, each at alpha / max(2, tests) (so that a noise event passes with probability <= alpha); the edge-line test
+// decides by default, the joint look-ahead test runs when lookahead_us > 0, the recency test is optional
+// (recency_max_us > 0):
 //  * recency (count) test: the ages a_q of the newest event of the 8 neighbours q (own pixel excluded: hot pixels
 //    and refractory bursts do not support themselves; each neighbour counts once, so a hot neighbour adds at most
 //    1) are i.i.d. Exp(lambda) under noise. Sorted a_(1) <= ... <= a_(8); the event passes when a_(k) <= A_k for
@@ -18,6 +20,10 @@
 //    p(U) = 1 − exp(−(lambda²/2)·(jitter·U + precision·U²/2)) within age U; with the directions' smallest matched
 //    ages sorted, u_(1) <= ... <= u_(8), the event passes when u_(m) <= U_m for some m, P(Binomial(8, p(U_m)) >= m)
 //    = alpha / 2 / 8. Slow edges pass it: their support is sparse but exactly placed in time.
+//  * joint (look-ahead) edge-line test: the same half-line test mirrored in time (p + d at t + s, p + 2d at t + 2s,
+//    0 < s, s2 <= L) gives 8 more independent half-lines; the 16 smallest matched ages (past and future) sorted,
+//    w_(1) <= ..., the event passes when w_(m) <= V_m, P(Binomial(16, p(V_m)) >= m) = alpha / 2 / 16. An edge
+//    with one line behind it (an edge entering the view, a corner) and one ahead of it passes.
 // lambda: from the events whose 8 neighbours are all older than T0 = 10 ms (rate r0 per pixel·s, which noise
 // alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us.
 //
@@ -32,6 +38,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "evpipe/core/event.hpp"
@@ -50,6 +57,10 @@ struct SignificanceOptions {
   double initial_rate_hz = 10.0;            ///< BA rate assumed before the first period closes (conservative)
   bool edge_line = true;                    ///< the edge-line test (false: recency test alone)
   std::int64_t recency_max_us = 0;          ///< recency test's longest age (0 = no recency test)
+  /// Look-ahead L: an event the causal tests reject waits up to L for its future half-lines (p + d at t + s,
+  /// p + 2d at t + 2s), joined with its past ones in one test (0 = causal: decided on arrival). 20 ms: the
+  /// pipeline's event -> LCM budget (35 ms p99) minus what the stages after the denoiser add at p99 (~13 ms).
+  std::int64_t lookahead_us = 20'000;
 };
 
 class Significance {
@@ -71,15 +82,30 @@ class Significance {
   void set_rate(double rate_hz) noexcept;
   [[nodiscard]] const std::array<std::int32_t, 8>& recency_thresholds_us() const noexcept { return recency_us_; }
   [[nodiscard]] const std::array<std::int32_t, 8>& line_thresholds_us() const noexcept { return line_us_; }
+  /// Joint (past + future) edge-line thresholds V_1..V_16 (µs); all 0 when lookahead_us = 0.
+  [[nodiscard]] const std::array<std::int32_t, 16>& joint_thresholds_us() const noexcept { return joint_us_; }
+
+  // Look-ahead (lookahead_us > 0; SignificanceFilter drives it): after accept() rejected an event, its past
+  // half-lines' smallest matched ages (ascending); later, once every event up to t + L is stamped,
+  // joint_ratio() joins them with the future half-lines: max_m V_m / w_(m) over the merged ages (>= 1: keep).
+  [[nodiscard]] int past_line_count() const noexcept { return past_n_; }
+  [[nodiscard]] const std::array<std::int32_t, 8>& past_line_ages_us() const noexcept { return past_ages_; }
+  [[nodiscard]] float joint_ratio(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
+  /// Starts fetching the rings joint_ratio(e, ...) reads first.
+  void prefetch_block(const Event& e) const noexcept;
 
  private:
   void allocate();
   void rebase(std::int64_t t_us) noexcept;
   void update_rate(std::int64_t t_us) noexcept;
   /// max_m U_m / u_(m) over the directions' smallest matched ages u, examined until it reaches 1 (kept).
-  [[nodiscard]] float edge_lines(std::size_t centre, std::int32_t now, int polarity) const noexcept;
+  [[nodiscard]] float edge_lines(std::size_t centre, std::int32_t now, int polarity) noexcept;
   /// The same, walking the rings one entry at a time (the reference; exact on any input order).
-  [[nodiscard]] float edge_lines_scalar(std::size_t centre, std::int32_t now, int polarity) const noexcept;
+  [[nodiscard]] float edge_lines_scalar(std::size_t centre, std::int32_t now, int polarity) noexcept;
+  /// The future half-lines' smallest matched ages (ascending) into `ages`; returns how many directions matched.
+  int future_lines(std::size_t centre, std::int32_t then, int polarity,
+                   std::array<std::int32_t, 8>& ages) const noexcept;
+  void set_joint_thresholds() noexcept;
 
   SensorGeometry geometry_;
   SignificanceOptions options_;
@@ -94,9 +120,14 @@ class Significance {
   static constexpr std::uint8_t kAvx2 = 2;
   std::uint8_t kernel_ = kScalar;  // edge-line kernel (chosen from the CPU at construction)
   std::array<std::int32_t, 8> recency_us_{};
-  std::array<std::int32_t, 8> line_us_{};  // U_1..U_8
-  std::array<double, 8> quantile_{};       // q_m: P(Binomial(8, q_m) >= m) = alpha / 2 / 8
-  std::int32_t window_us_ = 0;             // T
+  std::array<std::int32_t, 8> line_us_{};    // U_1..U_8
+  std::array<double, 8> quantile_{};         // q_m: P(Binomial(8, q_m) >= m) = alpha / 2 / 8
+  std::array<std::int32_t, 16> joint_us_{};  // V_1..V_16
+  std::array<double, 16> joint_quantile_{};  // P(Binomial(16, q_m) >= m) = alpha / 2 / 16
+  std::int32_t lookahead_us_ = 0;
+  std::array<std::int32_t, 8> past_ages_{};
+  int past_n_ = 0;
+  std::int32_t window_us_ = 0;  // T
   std::int32_t jitter_us_ = 0;
   float precision_ = 0.0F;
   // Rate estimate.
@@ -109,6 +140,11 @@ class Significance {
   std::uint64_t kept_line_ = 0;
   float score_ = 0.0F;
 };
+
+/// The significance filter as a Filter: PerEventFilter<Significance> when causal (lookahead_us = 0), else events the
+/// causal tests reject wait until the first event later than t + L (or finish()) for the joint test; decisions are
+/// output in input order. Stream = batch: a decision depends only on the events up to t + L.
+std::unique_ptr<Filter> make_significance(const SensorGeometry& geometry, const SignificanceOptions& options);
 
 FilterSpec significance_spec();
 

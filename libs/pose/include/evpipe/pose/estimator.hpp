@@ -114,7 +114,11 @@ struct PoseEstimate {
 /// One initialisation attempt cut out of the estimator (prepare_initialisation), so that it can run on another
 /// thread: run_initialisation() reads only the estimator's fixed inputs (camera, model, options).
 struct InitJob {
-  std::vector<Event> events;                  ///< the window, or the accumulated events when it is sparse
+  std::vector<Event> events;  ///< the window, or the accumulated events when it is sparse
+  /// The events a tracking update at t_us uses (tracking_events()), when they differ from `events`: a pose found
+  /// on accumulated events is a blur of the target's motion over their span, so it is polished on these before
+  /// it is published as the pose at t_us. Empty: the same as `events`.
+  std::vector<Event> fresh;
   std::int64_t t_us{0};                       ///< the window time a found pose refers to
   std::optional<camera::PosePrior> search;    ///< searched first: the configured prior, or around the last good pose
   std::optional<camera::PosePrior> fallback;  ///< searched when the first search fails (every other attempt)
@@ -125,8 +129,11 @@ struct InitJob {
 struct InitOutcome {
   std::int64_t t_us{0};
   bool ok{false};
-  TrackUpdate polished;  ///< the found pose polished by the tracker on the job's events (when ok)
-  std::string note;      ///< why not ok
+  TrackUpdate polished;  ///< the found pose polished by the tracker on the job's events, then its fresh ones (ok)
+  /// false: the fresh events did not give a healthy polish; the track starts from the accumulation's pose, but this
+  /// window's pose is not published as valid (it is a blur of the motion over the accumulation's span).
+  bool measured_at_t{true};
+  std::string note;  ///< why not ok
   std::uint64_t generation{0};
   /// Set by advance_initialisation(): the track was carried on the worker over the windows that passed during
   /// the attempt; t_us and polished are then those of the last slice tracked, `previous` the pose before it.
