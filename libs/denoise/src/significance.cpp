@@ -233,6 +233,56 @@ __attribute__((target("avx2"))) std::size_t match_ages_avx2(const LineArgs& a,
   }
   return n;
 }
+/// The look-ahead's future half-lines (Significance::future_lines) with SSE4.1: per direction, every entry pair of
+/// p + d and p + 2d at once. The scalar loop stops at the first entry not later than the event (s <= 0); with the
+/// rings' times descending (time-ordered input) that is the same as masking those entries, and its last match is
+/// the smallest s that matched. Returns each direction's smallest matched s (kNoMatch when none).
+__attribute__((target("sse4.1"))) void future_ages_sse4(const LineArgs& a, std::int32_t lookahead_us,
+                                                        std::array<std::int32_t, 8>& found) noexcept {
+  const __m128i v_then = _mm_set1_epi32(a.now);
+  const __m128i v_pol = _mm_set1_epi32(a.polarity);
+  const __m128i v_one = _mm_set1_epi32(1);
+  const __m128i v_zero = _mm_setzero_si128();
+  const __m128i v_lookahead = _mm_set1_epi32(lookahead_us);
+  const __m128i v_jitter = _mm_set1_epi32(a.jitter_us);
+  const __m128 v_precision = _mm_set1_ps(a.precision);
+  const __m128i v_highest = _mm_set1_epi32(kNoMatch);
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::int64_t off = kDy[i] * a.stride + kDx[i];
+    const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre + off) * 4));
+    const __m128i r2 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre + 2 * off) * 4));
+    const __m128i s1 = _mm_sub_epi32(_mm_srai_epi32(r1, 1), v_then);
+    const __m128i s2 = _mm_sub_epi32(_mm_srai_epi32(r2, 1), v_then);
+    // 0 < s <= L with the event's polarity.
+    const __m128i ok1 =
+        _mm_andnot_si128(_mm_cmpgt_epi32(s1, v_lookahead),
+                         _mm_and_si128(_mm_cmpgt_epi32(s1, v_zero), _mm_cmpeq_epi32(_mm_and_si128(r1, v_one), v_pol)));
+    const __m128i ok2 =
+        _mm_andnot_si128(_mm_cmpgt_epi32(s2, v_lookahead),
+                         _mm_and_si128(_mm_cmpgt_epi32(s2, v_zero), _mm_cmpeq_epi32(_mm_and_si128(r2, v_one), v_pol)));
+    const __m128i tol = _mm_add_epi32(v_jitter, _mm_cvttps_epi32(_mm_mul_ps(v_precision, _mm_cvtepi32_ps(s1))));
+    const __m128i twice = _mm_add_epi32(s1, s1);
+    // hit_a: some entry b of p + 2d with ok2_b and |s2_b − 2·s1_a| <= tol_a.
+    __m128i hit = _mm_setzero_si128();
+    __m128i b = _mm_shuffle_epi32(s2, 0x00);
+    hit = _mm_or_si128(hit, _mm_andnot_si128(_mm_cmpgt_epi32(_mm_abs_epi32(_mm_sub_epi32(b, twice)), tol),
+                                             _mm_shuffle_epi32(ok2, 0x00)));
+    b = _mm_shuffle_epi32(s2, 0x55);
+    hit = _mm_or_si128(hit, _mm_andnot_si128(_mm_cmpgt_epi32(_mm_abs_epi32(_mm_sub_epi32(b, twice)), tol),
+                                             _mm_shuffle_epi32(ok2, 0x55)));
+    b = _mm_shuffle_epi32(s2, 0xAA);
+    hit = _mm_or_si128(hit, _mm_andnot_si128(_mm_cmpgt_epi32(_mm_abs_epi32(_mm_sub_epi32(b, twice)), tol),
+                                             _mm_shuffle_epi32(ok2, 0xAA)));
+    b = _mm_shuffle_epi32(s2, 0xFF);
+    hit = _mm_or_si128(hit, _mm_andnot_si128(_mm_cmpgt_epi32(_mm_abs_epi32(_mm_sub_epi32(b, twice)), tol),
+                                             _mm_shuffle_epi32(ok2, 0xFF)));
+    __m128i m = _mm_blendv_epi8(v_highest, s1, _mm_and_si128(hit, ok1));
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0xB1));
+    found[i] = _mm_cvtsi128_si32(m);
+  }
+}
+
 #endif
 
 /// The edge-line kernel for this CPU, or the one EVPIPE_SIGNIFICANCE_KERNEL names (scalar, sse4, avx2; for tests
@@ -575,6 +625,23 @@ int Significance::future_lines(std::size_t centre, std::int32_t then, int polari
   static constexpr std::array<std::int8_t, 8> kDx = {-1, 0, 1, -1, 1, -1, 0, 1};
   static constexpr std::array<std::int8_t, 8> kDy = {-1, -1, -1, 0, 0, 1, 1, 1};
   int n = 0;
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+  if (kernel_ != kScalar && ordered_) {
+    std::array<std::int32_t, 8> found{};
+    const LineArgs args{ring_.data(), stride_,   static_cast<std::int64_t>(centre), then, polarity, line_us_.data(),
+                        jitter_us_,   precision_};
+    future_ages_sse4(args, lookahead_us_, found);
+    for (const std::int32_t f : found) {
+      if (f == std::numeric_limits<std::int32_t>::max()) continue;
+      int j = n++;
+      for (; j > 0 && ages[static_cast<std::size_t>(j - 1)] > f; --j) {
+        ages[static_cast<std::size_t>(j)] = ages[static_cast<std::size_t>(j - 1)];
+      }
+      ages[static_cast<std::size_t>(j)] = f;
+    }
+    return n;
+  }
+#endif
   for (std::size_t i = 0; i < 8; ++i) {
     const std::int64_t off = kDy[i] * stride_ + kDx[i];
     const std::int32_t* r1 = ring_.data() + (static_cast<std::int64_t>(centre) + off) * kRing;
