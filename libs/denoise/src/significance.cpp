@@ -22,6 +22,7 @@ constexpr std::int32_t kNever = kNeverTime * 2;                // stored value
 constexpr std::int64_t kRebaseAt = std::int64_t{1} << 29;      // relative µs (about 9 min)
 constexpr std::int64_t kKeepOnRebase = std::int64_t{1} << 24;  // history kept exact on a rebase (about 16 s)
 constexpr std::int32_t kZeroSupportUs = 10'000;                // T0 of the rate estimator
+constexpr std::int32_t kShortZeroSupportUs = 1'000;            // T1 < T0: picks the root (update_rate)
 constexpr int kNeighbours = 8;
 constexpr std::int32_t kAgeCap = std::numeric_limits<std::int32_t>::max() / 4;
 
@@ -344,7 +345,11 @@ void Significance::reset() noexcept {
   last_t_us_ = 0;
   ordered_ = true;
   zero_support_ = 0;
+  short_zero_support_ = 0;
+  events_ = 0;
   zero_acc_ = 0.0;
+  short_zero_acc_ = 0.0;
+  events_acc_ = 0.0;
   time_acc_s_ = 0.0;
   kept_recency_ = 0;
   kept_line_ = 0;
@@ -405,35 +410,65 @@ void Significance::update_rate(std::int64_t t_us) noexcept {
                                static_cast<double>(std::max<std::int64_t>(1, options_.rate_memory_us)));
   while (t_us >= period_end_us_) {
     zero_acc_ = zero_acc_ * keep + static_cast<double>(zero_support_);
+    short_zero_acc_ = short_zero_acc_ * keep + static_cast<double>(short_zero_support_);
+    events_acc_ = events_acc_ * keep + static_cast<double>(events_);
     time_acc_s_ = time_acc_s_ * keep + period_s;
     zero_support_ = 0;
+    short_zero_support_ = 0;
+    events_ = 0;
     period_end_us_ += options_.rate_period_us;
     if (t_us - period_end_us_ > options_.rate_memory_us * 20) {  // long silence: forget, restart the periods
       zero_acc_ = 0.0;
+      short_zero_acc_ = 0.0;
+      events_acc_ = 0.0;
       time_acc_s_ = 0.0;
       period_end_us_ = t_us + options_.rate_period_us;
       return;
     }
   }
   const double pixels = static_cast<double>(geometry_.width) * geometry_.height;
-  const double r0 = zero_acc_ / (time_acc_s_ * pixels);  // zero-support events per pixel·s
-  // Noise alone: r0 = lambda·exp(−8·lambda·T0). Smallest root by fixed-point iteration from lambda = r0 (increases
-  // monotonically to it); no root when r0 > 1 / (8·T0·e): then the maximiser 1 / (8·T0).
+  const double r0 = zero_acc_ / (time_acc_s_ * pixels);        // zero-support events per pixel·s (T0)
+  const double r1 = short_zero_acc_ / (time_acc_s_ * pixels);  // ... with the shorter T1
+  const double all = events_acc_ / (time_acc_s_ * pixels);     // every event, per pixel·s
+  set_rate(rate_from_zero_support(r0, r1, all, zero_acc_));
+}
+
+double Significance::rate_from_zero_support(double r0, double r1, double all, double zero_count) noexcept {
+  // Noise alone: r(T) = lambda·exp(−8·lambda·T) events per pixel·s have no neighbour event younger than T. For r0 =
+  // r(T0) below its maximum 1 / (8·T0·e) two rates give it, lambda_1 <= 1 / (8·T0) <= lambda_2 (at or above it:
+  // the maximiser 1 / (8·T0)). lambda_2 is possible only when the sensor's whole event rate `all` reaches it (noise
+  // is part of it), and then the share at the shorter T1 tells the roots apart: r1 / r0 = exp(8·lambda·(T0 − T1)),
+  // lambda_12 = ln(r1 / r0) / (8·(T0 − T1)); the root nearer to it (in ratio) is taken. Below 1 / (8·T0) = 12.5
+  // Hz/px of events in all, lambda_1 always (the estimator as it was). "Reaches" allows lambda_2's statistical
+  // error, 3 sigma: d(lambda_2) / lambda_2 = (dr0 / r0) / (8·lambda_2·T0 − 1) <= 3 / sqrt(zero_count) there.
   const double c = kNeighbours * kZeroSupportUs * 1e-6;
-  double lambda = r0;
-  if (r0 * c * std::exp(1.0) >= 1.0) {
-    lambda = 1.0 / c;
-  } else {
-    for (int it = 0; it < 200; ++it) {
-      const double next = r0 * std::exp(c * lambda);
-      if (std::abs(next - lambda) <= 1e-9 * next) {
-        lambda = next;
-        break;
-      }
-      lambda = next;
+  if (!(r0 > 0.0)) return 0.0;
+  if (r0 * c * std::exp(1.0) >= 1.0) return 1.0 / c;
+  // lambda_1 by fixed-point iteration from r0 (increases monotonically to it).
+  double small = r0;
+  for (int it = 0; it < 200; ++it) {
+    const double next = r0 * std::exp(c * small);
+    if (std::abs(next - small) <= 1e-9 * next) {
+      small = next;
+      break;
     }
+    small = next;
   }
-  set_rate(lambda);
+  const double c1 = kNeighbours * kShortZeroSupportUs * 1e-6;
+  if (!(all > 1.0 / c) || !(r1 > r0)) return small;
+  const double from_ratio = std::log(r1 / r0) / (c - c1);
+  // lambda_2 by the iteration lambda = ln(lambda / r0) / c from above (decreases monotonically to it).
+  double large = std::max(from_ratio, 2.0 / c);
+  for (int it = 0; it < 200; ++it) {
+    const double next = std::log(large / r0) / c;
+    if (std::abs(next - large) <= 1e-9 * next) {
+      large = next;
+      break;
+    }
+    large = next;
+  }
+  if (!(large <= all * (1.0 + 3.0 / std::sqrt(std::max(zero_count, 1.0))))) return small;
+  return std::abs(std::log(from_ratio / large)) < std::abs(std::log(from_ratio / small)) ? large : small;
 }
 
 void Significance::rebase(std::int64_t t_us) noexcept {
@@ -551,6 +586,7 @@ bool Significance::accept(const Event& e) noexcept {
     base_us_ = e.t_us;
     period_end_us_ = e.t_us + options_.rate_period_us;
     last_t_us_ = e.t_us;
+    count_from_us_ = e.t_us + kZeroSupportUs;  // before that no event can have a neighbour T0 old
   }
   ordered_ = ordered_ && e.t_us >= last_t_us_;
   last_t_us_ = e.t_us;
@@ -575,7 +611,11 @@ bool Significance::accept(const Event& e) noexcept {
     age[i] = std::min(kAgeCap, now - (ring[nb[i] * kRing] >> 1));
     newest = std::min(newest, age[i]);
   }
-  if (newest > kZeroSupportUs) ++zero_support_;
+  if (e.t_us >= count_from_us_) {
+    if (newest > kZeroSupportUs) ++zero_support_;
+    if (newest > kShortZeroSupportUs) ++short_zero_support_;
+    ++events_;
+  }
   float ratio = 0.0F;
   if (options_.recency_max_us > 0) {
     sort8(age);

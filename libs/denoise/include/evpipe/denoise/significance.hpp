@@ -25,7 +25,8 @@
 //    w_(1) <= ..., the event passes when w_(m) <= V_m, P(Binomial(16, p(V_m)) >= m) = alpha / 2 / 16. An edge
 //    with one line behind it (an edge entering the view, a corner) and one ahead of it passes.
 // lambda: from the events whose 8 neighbours are all older than T0 = 10 ms (rate r0 per pixel·s, which noise
-// alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us.
+// alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us; of its two roots
+// the larger (above 12.5 Hz/px) only when the whole event rate reaches it and the share at T1 = 1 ms points to it.
 //
 // State: per pixel the last `kRing` (4) events (time·2 + polarity, 32 bits relative to a base that moves forward on
 // long streams), padded by 2 pixels on every side; allocated in one place (allocate()).
@@ -81,6 +82,11 @@ class Significance {
   [[nodiscard]] double rate_hz() const noexcept { return rate_hz_; }
   /// Recency thresholds A_1..A_8 and edge-line thresholds U_1..U_8 (µs) for a BA rate.
   void set_rate(double rate_hz) noexcept;
+  /// BA rate (Hz/px) from the rates r0, r1 (per pixel·s) of events without a neighbour event younger than T0 =
+  /// 10 ms and T1 = 1 ms, and the rate of all events; zero_count: the events behind r0 (docs/algorithms.md,
+  /// "Significance filter": the rate estimate).
+  [[nodiscard]] static double rate_from_zero_support(double r0_hz, double r1_hz, double all_hz,
+                                                     double zero_count) noexcept;
   [[nodiscard]] const std::array<std::int32_t, 8>& recency_thresholds_us() const noexcept { return recency_us_; }
   [[nodiscard]] const std::array<std::int32_t, 8>& line_thresholds_us() const noexcept { return line_us_; }
   /// Joint (past + future) edge-line thresholds V_1..V_16 (µs); all 0 when lookahead_us = 0.
@@ -134,8 +140,13 @@ class Significance {
   // Rate estimate.
   double rate_hz_ = 0.0;
   std::int64_t period_end_us_ = 0;
-  std::int64_t zero_support_ = 0;  // in the current period
-  double zero_acc_ = 0.0;          // forgetting sums
+  std::int64_t zero_support_ = 0;        // in the current period: no neighbour event younger than T0
+  std::int64_t short_zero_support_ = 0;  // ... younger than T1 (picks the root: rate_from_zero_support)
+  std::int64_t events_ = 0;              // every event in the current period
+  std::int64_t count_from_us_ = 0;       // the counts start T0 after the first event
+  double zero_acc_ = 0.0;                // forgetting sums
+  double short_zero_acc_ = 0.0;
+  double events_acc_ = 0.0;
   double time_acc_s_ = 0.0;
   std::uint64_t kept_recency_ = 0;
   std::uint64_t kept_line_ = 0;
