@@ -359,13 +359,14 @@ TEST_P(FirstInitialisation, IsTheTruePoseNotOneThatOnlyPassesNearTheEvents) {
 
 INSTANTIATE_TEST_SUITE_P(Scenes, FirstInitialisation, ::testing::Range(0, 5));
 
+namespace {
+
 // Standstill (issue 21): the roadheader moves, decelerates, stands still 1.5 s, accelerates and moves on, under
-// 1 Hz/px of background activity (no denoiser). While it stands the estimator holds the last measured pose
+// noise_hz of background activity (no denoiser). While it stands the estimator holds the last measured pose
 // (holding, valid, t_last_update_us older than t_us), never lost; when it moves again tracking resumes from the
 // held pose without a re-initialisation.
-TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
-  const std::uint64_t seed = 20261126;
-  SCOPED_TRACE(::testing::Message() << "seed " << seed);
+void holds_a_still_target(double noise_hz, std::uint64_t seed) {
+  SCOPED_TRACE(::testing::Message() << "seed " << seed << ", " << noise_hz << " Hz/px");
   const auto cfg = evpipe::testing::source_dir() / "config";
   sim::TargetScene scene;
   scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
@@ -393,7 +394,7 @@ TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
   std::vector<Event> events = sim::render_target(scene, 0, duration_us, rng);
   std::mt19937_64 noise_rng(seed + 1);
   sim::NoiseOptions no;
-  no.rate_hz_per_pixel = 1.0;
+  no.rate_hz_per_pixel = noise_hz;
   const auto noise =
       sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0, duration_us, no, noise_rng);
   events.insert(events.end(), noise.begin(), noise.end());
@@ -456,4 +457,18 @@ TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
   EXPECT_LT(worst_held_mm, 10.0);
   EXPECT_LT(worst_held_deg, 1.0);
   EXPECT_GE(tracked_after, 15);
+}
+
+}  // namespace
+
+TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
+  holds_a_still_target(1.0, 20261126);
+}
+
+// The same at 5 Hz/px raw: ~13 500 noise events per 30 ms window against ~1 500 of the target's; tracking then
+// accumulates the newest events holding track_min_events of the target beyond what the measured noise rate explains
+// (EstimatorOptions::track_max_blur_px). A guard, not a proof of the fix: this seed held before it too, and seeds
+// 1, 2 and 4 of this scene still lose the track before the stop (inconclusive verifications in a row; issue 21 open).
+TEST(PoseEstimator, HoldsAStillTargetUnderHeavyNoise) {
+  holds_a_still_target(5.0, 20261126);
 }
