@@ -159,10 +159,13 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
     while (first != recent_.end() && first->t_us < t_end_us - span_us) ++first;
     return EventSpan(first, recent_.end());
   };
-  const bool longer = options_.init_long_accumulate_us > 0 && counters_.init_attempts % 2 == 1;
   EventSpan events = window.size() < options_.init_target_events
                          ? newest(options_.init_target_events, options_.init_accumulate_us)
                          : window;
+  // The longer accumulation every other attempt, and whenever the shorter one is too small to attempt at all (else
+  // a target too slow to give init_min_events in init_accumulate_us never gets an attempt to alternate with).
+  const bool longer = options_.init_long_accumulate_us > 0 &&
+                      (counters_.init_attempts % 2 == 1 || events.size() < options_.init_min_events);
   if (longer) {
     const EventSpan more = newest(options_.init_long_target_events, options_.init_long_accumulate_us);
     if (more.size() > events.size()) events = more;
