@@ -166,9 +166,13 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
   // a target too slow to give init_min_events in init_accumulate_us never gets an attempt to alternate with).
   const bool longer = options_.init_long_accumulate_us > 0 &&
                       (counters_.init_attempts % 2 == 1 || events.size() < options_.init_min_events);
+  EventSpan fresh;
   if (longer) {
     const EventSpan more = newest(options_.init_long_target_events, options_.init_long_accumulate_us);
-    if (more.size() > events.size()) events = more;
+    if (more.size() > events.size()) {
+      if (events.size() >= options_.init_min_events) fresh = events;
+      events = more;
+    }
   }
   if (events.size() < options_.init_min_events) {
     skipped = held_estimate(window, t_end_us);
@@ -179,6 +183,7 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
   ++counters_.init_attempts;
   InitJob job;
   job.events.assign(events.begin(), events.end());
+  job.fresh.assign(fresh.begin(), fresh.end());
   job.t_us = t_end_us;
   job.generation = generation_;
   // After a loss search around the last good pose; before the first success around the configured prior.
@@ -209,6 +214,11 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   // Polish the initial pose on the job's events with the tracker so the first published pose carries a robust
   // scale and a covariance like every later one.
   out.polished = track_window(job.events, map_, model_, init.T_cam_model, options_.track);
+  if (!job.fresh.empty()) {
+    // Found on the long accumulation: the newer, shorter one gives the fresher pose when it can be verified on it.
+    TrackUpdate fresh = track_window(job.fresh, map_, model_, init.T_cam_model, options_.track);
+    if (fresh.healthy) out.polished = std::move(fresh);
+  }
   if (!out.polished.healthy) {
     out.note = "initialisation found a pose but tracking rejected it: " + out.polished.reason;
     return out;

@@ -129,7 +129,10 @@ struct PoseEstimate {
 /// One initialisation attempt cut out of the estimator (prepare_initialisation), so that it can run on another
 /// thread: run_initialisation() reads only the estimator's fixed inputs (camera, model, options).
 struct InitJob {
-  std::vector<Event> events;                  ///< the window, or the accumulated events when it is sparse
+  std::vector<Event> events;  ///< the window, or the accumulated events when it is sparse
+  /// With the long accumulation (init_long_accumulate_us): the shorter one, the found pose is polished on it too
+  /// and that polish wins when healthy (fresher: a moving target's long accumulation is blurred by its motion).
+  std::vector<Event> fresh;
   std::int64_t t_us{0};                       ///< the window time a found pose refers to
   std::optional<camera::PosePrior> search;    ///< searched first: the configured prior, or around the last good pose
   std::optional<camera::PosePrior> fallback;  ///< searched when the first search fails (every other attempt)
