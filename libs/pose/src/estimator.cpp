@@ -39,11 +39,11 @@ void EstimatorOptions::validate() const {
         fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
                     "got {} / {}",
                     s.significance, s.max_motion_px));
-  if (!(track_max_blur_px > 0.0) || track_max_span_us < 0 || track_history_max_us < 0)
+  if (!(track_max_blur_px > 0.0) || track_max_span_us < 0 || track_history_max_us < 0 || unverified_max_us < 0)
     throw std::invalid_argument(
-        fmt::format("pose.track_max_blur_px must be > 0 and track_max_span_us / track_history_max_us >= 0, got {} / "
-                    "{} / {}",
-                    track_max_blur_px, track_max_span_us, track_history_max_us));
+        fmt::format("pose.track_max_blur_px must be > 0 and track_max_span_us / track_history_max_us / "
+                    "unverified_max_us >= 0, got {} / {} / {} / {}",
+                    track_max_blur_px, track_max_span_us, track_history_max_us, unverified_max_us));
   if (confirm_windows < 0)
     throw std::invalid_argument(fmt::format("pose.confirm_windows: must be >= 0, got {}", confirm_windows));
   if (!(hold_entry_max_motion_px >= 0.0) || hold_contradicted_windows < 1)
