@@ -359,13 +359,14 @@ TEST_P(FirstInitialisation, IsTheTruePoseNotOneThatOnlyPassesNearTheEvents) {
 
 INSTANTIATE_TEST_SUITE_P(Scenes, FirstInitialisation, ::testing::Range(0, 5));
 
+namespace {
+
 // Standstill (issue 21): the roadheader moves, decelerates, stands still 1.5 s, accelerates and moves on, under
-// 1 Hz/px of background activity (no denoiser). While it stands the estimator holds the last measured pose
+// noise_hz of background activity (no denoiser). While it stands the estimator holds the last measured pose
 // (holding, valid, t_last_update_us older than t_us), never lost; when it moves again tracking resumes from the
 // held pose without a re-initialisation.
-TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
-  const std::uint64_t seed = 20261126;
-  SCOPED_TRACE(::testing::Message() << "seed " << seed);
+void holds_a_still_target(double noise_hz, std::uint64_t seed) {
+  SCOPED_TRACE(::testing::Message() << "seed " << seed << ", " << noise_hz << " Hz/px");
   const auto cfg = evpipe::testing::source_dir() / "config";
   sim::TargetScene scene;
   scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
@@ -393,7 +394,7 @@ TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
   std::vector<Event> events = sim::render_target(scene, 0, duration_us, rng);
   std::mt19937_64 noise_rng(seed + 1);
   sim::NoiseOptions no;
-  no.rate_hz_per_pixel = 1.0;
+  no.rate_hz_per_pixel = noise_hz;
   const auto noise =
       sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0, duration_us, no, noise_rng);
   events.insert(events.end(), noise.begin(), noise.end());
@@ -456,6 +457,82 @@ TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
   EXPECT_LT(worst_held_mm, 10.0);
   EXPECT_LT(worst_held_deg, 1.0);
   EXPECT_GE(tracked_after, 15);
+}
+
+}  // namespace
+
+TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
+  holds_a_still_target(1.0, 20261126);
+}
+
+// The same at 5 Hz/px raw: ~13 500 noise events per 30 ms window against ~1 500 of the target's; tracking then
+// accumulates the newest events holding track_min_events of the target beyond what the measured noise rate explains
+// (EstimatorOptions::track_max_blur_px). A guard, not a proof of the fix: this seed held before it too, and seeds
+// 1, 2 and 4 of this scene still lose the track before the stop (inconclusive verifications in a row; issue 21 open).
+TEST(PoseEstimator, HoldsAStillTargetUnderHeavyNoise) {
+  holds_a_still_target(5.0, 20261126);
+}
+
+// Slow motion (issue 21): the roadheader at 1 m drifting at most 0.04 m/s and 6 deg/s under 1 Hz/px of raw noise. A
+// 30 ms window then holds ~2 700 noise events and a few hundred of the target's: before, no attempt of 300 ms found
+// 4 lines and nothing was published for the whole 3 s. The longer initialisation accumulation (the newest 20 000 of
+// up to 1 s, init_long_accumulate_us, off by default, on here; its poses verified) starts the track and tracking
+// accumulates the target's events (track_min_events beyond the measured noise); every published pose must be right.
+TEST(PoseEstimator, TracksASlowTargetUnderNoise) {
+  const std::uint64_t seed = 2202;
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  sim::TargetScene scene;
+  scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+  scene.model = camera::load_line_model((cfg / "roadheader-wireframe.yaml").string());
+  sim::MotionOptions mo;
+  mo.base = sim::facing_pose(scene.model, 1.0, sim::default_view(scene.model));
+  mo.pivot_model_m = sim::bbox_centre(scene.model);
+  mo.max_speed_m_s = 0.04;
+  mo.max_angular_speed_deg_s = 6.0;
+  const std::int64_t duration_us = 3'000'000;
+  std::mt19937_64 rng(seed);
+  scene.trajectory = sim::generate_motion(0, duration_us, mo, rng);
+  std::vector<Event> events = sim::render_target(scene, 0, duration_us, rng);
+  std::mt19937_64 noise_rng(seed + 1);
+  sim::NoiseOptions no;
+  no.rate_hz_per_pixel = 1.0;
+  const auto noise =
+      sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0, duration_us, no, noise_rng);
+  events.insert(events.end(), noise.begin(), noise.end());
+  std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  camera::PosePrior prior;
+  prior.pose = sim::perturb_pose(scene.trajectory.front().pose, 0.05, 10.0, rng);
+
+  pose::EstimatorOptions o;
+  o.init_long_accumulate_us = 1'000'000;  // off by default (clutter without a prior: docs/history.md)
+  pose::PoseEstimator est(scene.camera, scene.model, prior, o);
+  const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
+  int windows_after_first = 0, valid = 0;
+  double worst_mm = 0.0, worst_deg = 0.0;
+  std::int64_t first_us = -1;
+  for (std::int64_t t0 = 0; t0 + kWindow_us <= duration_us; t0 += kWindow_us) {
+    const auto lo = std::lower_bound(events.begin(), events.end(), t0, before);
+    const auto hi = std::lower_bound(lo, events.end(), t0 + kWindow_us, before);
+    const std::int64_t t_mid = t0 + kWindow_us / 2;
+    const auto out = est.process(EventSpan(lo, hi), t_mid);
+    if (first_us < 0 && out.pose_valid) first_us = t_mid;
+    if (first_us < 0) continue;
+    ++windows_after_first;
+    if (!out.pose_valid) continue;
+    ++valid;
+    const auto truth = *camera::interpolate(scene.trajectory, t_mid);
+    worst_mm = std::max(worst_mm, 1000.0 * camera::translation_distance_m(out.T_cam_model, truth));
+    worst_deg = std::max(worst_deg, camera::rotation_angle_deg(out.T_cam_model, truth));
+  }
+  std::cout << "first valid pose at " << first_us << " us; " << valid << " of " << windows_after_first
+            << " windows valid from there, worst " << worst_mm << " mm / " << worst_deg << " deg\n";
+  ASSERT_GE(first_us, 0) << "never initialised";
+  EXPECT_LT(first_us, 1'500'000);
+  // Measured: first pose at 0.1 s, 62 of 97 windows valid after it (before: never initialised). The issue's 99 % is
+  // not met: the rest are windows whose verification is inconclusive (unverified, not published).
+  EXPECT_GE(valid, windows_after_first / 2);
+  EXPECT_LT(worst_mm, 20.0);  // never a confident wrong pose
+  EXPECT_LT(worst_deg, 2.0);
 }
 
 // A pose found on accumulated events (a sparse window: init_accumulate_us of the target's motion) is a blur of that

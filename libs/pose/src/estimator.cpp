@@ -39,6 +39,11 @@ void EstimatorOptions::validate() const {
         fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
                     "got {} / {}",
                     s.significance, s.max_motion_px));
+  if (!(track_max_blur_px > 0.0) || track_max_span_us < 0 || track_history_max_us < 0 || unverified_max_us < 0)
+    throw std::invalid_argument(
+        fmt::format("pose.track_max_blur_px must be > 0 and track_max_span_us / track_history_max_us / "
+                    "unverified_max_us >= 0, got {} / {} / {} / {}",
+                    track_max_blur_px, track_max_span_us, track_history_max_us, unverified_max_us));
   if (confirm_windows < 0)
     throw std::invalid_argument(fmt::format("pose.confirm_windows: must be >= 0, got {}", confirm_windows));
   if (!(hold_entry_max_motion_px >= 0.0) || hold_contradicted_windows < 1)
@@ -87,16 +92,18 @@ void PoseEstimator::set_status(TrackStatus s) {
 camera::Pose PoseEstimator::predict(const TrackState& state, std::int64_t t_end_us) const {
   const auto& last = state.last;
   const auto& previous = state.previous;
-  if (!options_.constant_velocity || !previous || !last || last->t_us <= previous->t_us) return last->pose;
+  // Newer than the last verified pose: an unverified fit (TrackState::fitted) is where the target was seen last.
+  const camera::StampedPose& from = state.fitted && state.fitted->t_us > last->t_us ? *state.fitted : *last;
+  if (!options_.constant_velocity || !previous || !last || last->t_us <= previous->t_us) return from.pose;
   // Constant velocity on SE(3): apply the last relative motion, scaled to the time step, once more.
-  const double s = static_cast<double>(t_end_us - last->t_us) / static_cast<double>(last->t_us - previous->t_us);
-  if (!(s > 0.0) || s > 3.0) return last->pose;                      // a long gap makes the extrapolation meaningless
+  const double s = static_cast<double>(t_end_us - from.t_us) / static_cast<double>(last->t_us - previous->t_us);
+  if (!(s > 0.0) || s > 3.0) return from.pose;                       // a long gap makes the extrapolation meaningless
   const camera::Pose delta = last->pose * previous->pose.inverse();  // T_last_prev in the camera frame
   const Eigen::AngleAxisd rot(delta.q_cam_model);
   camera::Pose step;
   step.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(rot.angle() * s, rot.axis()));
   step.t_cam_model_m = delta.t_cam_model_m * s;  // small-motion approximation of the screw, fine at window steps
-  return step * last->pose;
+  return step * from.pose;
 }
 
 namespace {
@@ -152,13 +159,20 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
     while (first != recent_.end() && first->t_us < t_end_us - span_us) ++first;
     return EventSpan(first, recent_.end());
   };
-  const bool longer = options_.init_long_accumulate_us > 0 && counters_.init_attempts % 2 == 1;
   EventSpan events = window.size() < options_.init_target_events
                          ? newest(options_.init_target_events, options_.init_accumulate_us)
                          : window;
+  // The longer accumulation every other attempt, and whenever the shorter one is too small to attempt at all (else
+  // a target too slow to give init_min_events in init_accumulate_us never gets an attempt to alternate with).
+  const bool longer = options_.init_long_accumulate_us > 0 &&
+                      (counters_.init_attempts % 2 == 1 || events.size() < options_.init_min_events);
+  EventSpan shorter;
   if (longer) {
     const EventSpan more = newest(options_.init_long_target_events, options_.init_long_accumulate_us);
-    if (more.size() > events.size()) events = more;
+    if (more.size() > events.size()) {
+      if (events.size() >= options_.init_min_events) shorter = events;
+      events = more;
+    }
   }
   if (events.size() < options_.init_min_events) {
     skipped = held_estimate(window, t_end_us);
@@ -169,6 +183,7 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
   ++counters_.init_attempts;
   InitJob job;
   job.events.assign(events.begin(), events.end());
+  job.shorter.assign(shorter.begin(), shorter.end());
   const EventSpan fresh = tracking_events(window, t_end_us, recent_);
   if (fresh.data() != events.data() || fresh.size() != events.size()) job.fresh.assign(fresh.begin(), fresh.end());
   job.t_us = t_end_us;
@@ -203,6 +218,11 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   // accumulated events is polished on them first (the nearer start), then on the fresh ones (the accumulation
   // spans up to init_accumulate_us of the target's motion, the fresh events at most track_max_span_us).
   out.polished = track_window(job.events, map_, model_, init.T_cam_model, options_.track);
+  if (!job.shorter.empty()) {
+    // Found on the long accumulation: the newer, shorter one gives the fresher pose when it can be verified on it.
+    TrackUpdate shorter = track_window(job.shorter, map_, model_, init.T_cam_model, options_.track);
+    if (shorter.healthy) out.polished = std::move(shorter);
+  }
   if (!out.polished.healthy) {
     out.note = "initialisation found a pose but tracking rejected it: " + out.polished.reason;
     return out;
@@ -290,9 +310,12 @@ void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
   const std::int64_t newest_held = recent_.empty() ? std::numeric_limits<std::int64_t>::min() : recent_.back().t_us;
   std::vector<Event> scratch;
   const EventSpan fresh = events_after(window, newest_held, scratch);
-  std::int64_t oldest_kept = t_us - std::max(options_.init_accumulate_us, options_.init_long_accumulate_us);
+  std::int64_t oldest_kept =
+      t_us - std::max({options_.init_accumulate_us, options_.init_long_accumulate_us, options_.track_history_max_us});
   const std::size_t long_events = options_.init_long_accumulate_us > 0 ? options_.init_long_target_events : 0;
-  std::size_t cap = std::max({options_.init_target_events, long_events, options_.track_min_events, window.size()});
+  // A tracking history may span many windows (a slow target under noise): up to kHistoryMaxEvents.
+  std::size_t cap =
+      std::max({options_.init_target_events, long_events, options_.track_min_events, window.size(), kHistoryMaxEvents});
   if (attempt_t_us_) {  // an attempt runs elsewhere: keep what the catch-up will track, within a bound
     oldest_kept = std::min(oldest_kept, *attempt_t_us_ - options_.track.window_us);
     cap = std::max(cap, kCatchUpMaxEvents);
@@ -300,12 +323,39 @@ void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
   append_bounded(recent_, fresh, cap, oldest_kept);
 }
 
-EventSpan PoseEstimator::tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const {
-  // A rich window alone; an (almost) empty one alone too: the target has gone, old events must not hide that.
-  if (window.size() >= options_.track_min_events || window.size() < options_.track_min_window_events) return window;
-  // A sparse window: the newest track_min_events events, but none older than track_max_span_us.
-  auto first = history.end() - static_cast<std::ptrdiff_t>(std::min(history.size(), options_.track_min_events));
-  while (first != history.end() && first->t_us < t_us - options_.track_max_span_us) ++first;
+std::int64_t PoseEstimator::history_span_us(const TrackState& state) const {
+  if (!state.previous || !state.last || state.last->t_us <= state.previous->t_us) return options_.track_max_span_us;
+  const double px_per_us = image_motion_px(state.previous->pose, state.last->pose) /
+                           static_cast<double>(state.last->t_us - state.previous->t_us);
+  const double span_us =
+      px_per_us > 0.0 ? options_.track_max_blur_px / px_per_us : static_cast<double>(options_.track_history_max_us);
+  return std::clamp(static_cast<std::int64_t>(std::min(span_us, 1e15)),
+                    std::min(options_.track.window_us, options_.track_history_max_us), options_.track_history_max_us);
+}
+
+EventSpan PoseEstimator::tracking_events(const TrackState& state, EventSpan window, std::int64_t t_us,
+                                         EventSpan history) const {
+  // An (almost) empty window alone: the target has gone, old events must not hide that.
+  if (window.size() < options_.track_min_window_events || history.empty()) return window;
+  // The target's events in a span: the count minus what the measured background rate explains over the sensor.
+  const double noise_per_us =
+      state.noise_rate_hz * 1e-6 * static_cast<double>(camera_.width) * static_cast<double>(camera_.height);
+  const double window_noise = noise_per_us * static_cast<double>(std::max<std::int64_t>(options_.track.window_us, 1));
+  const auto target = static_cast<double>(options_.track_min_events);
+  if (static_cast<double>(window.size()) - window_noise >= target) return window;  // a rich window alone
+  // A sparse one: the newest events that hold track_min_events of the target, none older than the span over which
+  // the model's image moves track_max_blur_px (history_span_us).
+  const std::int64_t oldest_us = t_us - history_span_us(state);
+  const std::int64_t newest_us = history.back().t_us;
+  auto first = history.end();
+  std::size_t n = 0;
+  while (first != history.begin() && (first - 1)->t_us >= oldest_us) {
+    --first;
+    ++n;
+    const double noise =
+        noise_per_us * static_cast<double>(std::max<std::int64_t>(newest_us - first->t_us, options_.track.window_us));
+    if (static_cast<double>(n) - noise >= target) break;
+  }
   const EventSpan extended(first, history.end());
   return extended.size() > window.size() ? extended : window;
 }
@@ -327,10 +377,23 @@ PoseEstimate PoseEstimator::counted(PoseEstimate out) {
 
 PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, EventSpan history) {
   if (status_ == TrackStatus::holding) return hold_step(window, t_end_us, history);
+  track_.noise_rate_hz = noise_rate_hz_;
   const TrackState before = track_;
+  const EventSpan used = tracking_events(before, window, t_end_us, history);
   std::uint64_t unhealthy = 0;
-  PoseEstimate out = track_step(track_, window, t_end_us, history, unhealthy);
-  if (out.pose_valid && options_.hold && !signal_near(tracking_events(window, t_end_us, history), out.T_cam_model)) {
+  PoseEstimate out = track_step(track_, window, t_end_us, history, unhealthy, true);
+  if (track_.step_unverified && !signal_near(used, track_.fitted->pose)) {
+    // Not even the fit has more events near it than the noise explains: an ordinary unhealthy update.
+    track_.step_unverified = false;
+    track_.fitted = before.fitted;
+    track_.healthy_in_a_row = 0;
+    out.note = "tracking: no more events near the fitted model than the noise explains (" + out.note + ")";
+    if (++track_.unhealthy_in_a_row >= options_.lost_after_windows) {
+      track_.lost = true;
+      track_.previous.reset();
+    }
+  }
+  if (out.pose_valid && options_.hold && !signal_near(used, out.T_cam_model)) {
     // Healthy on paper, but the window has no more events near the fitted model than the noise explains: the
     // update fitted noise (a still target under a high noise rate), it measured nothing.
     const std::string why = fmt::format(
@@ -343,17 +406,21 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
       track_.lost = true;
       track_.previous.reset();
     }
-    const std::size_t used = out.window_events;
+    const std::size_t n_used = out.window_events;
     out = held_estimate(window, t_end_us);
-    out.window_events = used;
+    out.window_events = n_used;
     out.note = why;
   }
   if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking && track_.confirmed) {
     // Unhealthy: a still target (no events to measure it on) or a lost one? Decided on the last good pose.
     TrackState after = std::move(track_);
     track_ = before;
-    if (try_hold(window, t_end_us)) {
+    // An unverified fit that moved the model's image away from the last verified pose: that pose is stale.
+    const bool fit_moved = after.fitted && after.fitted->t_us > before.last->t_us &&
+                           image_motion_px(before.last->pose, after.fitted->pose) > options_.standstill.max_motion_px;
+    if (!fit_moved && try_hold(window, t_end_us)) {
       track_.unhealthy_in_a_row = 0;
+      track_.fitted.reset();
       track_.previous.reset();  // the target is still: when it moves again, predict from rest
       ++counters_.holds;
       set_status(TrackStatus::holding);
@@ -380,10 +447,10 @@ void PoseEstimator::unconfirmed(PoseEstimate& out) const {
 }
 
 PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std::int64_t t_end_us, EventSpan history,
-                                       std::uint64_t& unhealthy) const {
+                                       std::uint64_t& unhealthy, bool allow_unverified) const {
   PoseEstimate out;
   const camera::Pose predicted = predict(state, t_end_us);
-  const EventSpan events = tracking_events(window, t_end_us, history);
+  const EventSpan events = tracking_events(state, window, t_end_us, history);
   // Verification hook (pose-verify): the last tracked pose gives the motion each segment's support depends on.
   const std::optional<MotionHint> motion =
       state.last ? std::optional<MotionHint>(MotionHint{*state.last, t_end_us}) : std::nullopt;
@@ -392,9 +459,28 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
   out.window_events = events.size();
   // A target cannot jump: an update far from the prediction has locked onto other edges (a wrong local
   // minimum the per-window health test cannot see).
-  const bool jumped = u.healthy && (camera::translation_distance_m(u.T_cam_model, predicted) > options_.max_step_m ||
-                                    camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
-  if (u.healthy && !jumped) {
+  // Fitted, but the verification could not judge it (ran, failed, no symmetric alternative explains it better).
+  const bool inconclusive =
+      !u.healthy && !u.verification.reason.empty() &&
+      u.verification.symmetry_log_ratio > -symmetry_decision_log_ratio(options_.track.verification);
+  const bool jumped =
+      (u.healthy || inconclusive) && (camera::translation_distance_m(u.T_cam_model, predicted) > options_.max_step_m ||
+                                      camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
+  state.step_unverified = false;
+  if (inconclusive && !jumped && options_.unverified_max_us > 0 && allow_unverified &&
+      t_end_us - state.last->t_us <= options_.unverified_max_us) {
+    // The model explains the events but they are too few to vouch for the pose: not published, not a loss.
+    state.fitted = camera::StampedPose{t_end_us, u.T_cam_model};
+    state.step_unverified = true;
+    state.healthy_in_a_row = 0;
+    ++unhealthy;
+    out.t_last_update_us = state.last->t_us;
+    out.T_cam_model = state.last->pose;
+    out.inliers = u.inliers;
+    out.sigma_px = u.sigma_px;
+    out.note = "tracking, unverified: " + u.reason;
+  } else if (u.healthy && !jumped) {
+    state.fitted.reset();
     state.unhealthy_in_a_row = 0;
     if (++state.healthy_in_a_row >= options_.confirm_windows) state.confirmed = true;
     state.previous = state.last;
@@ -504,6 +590,7 @@ bool PoseEstimator::signal_near(EventSpan events, const camera::Pose& T_cam_mode
   if (!events.empty()) exposure_us = std::max(exposure_us, events.back().t_us - events.front().t_us + 1);
   const StandstillEvidence ev =
       probe_.observe(events, exposure_us, std::numeric_limits<std::int64_t>::min(), exposure_us);
+  noise_rate_hz_ = ev.noise_rate_hz;
   // Significant, and enough of it for the tracker's own minimum: the inliers of a fit (within ~4.7 sigma of the
   // edges, inside the near band at sigma < 0.7 px) are then mostly the target's events, not the noise's.
   return ev.signal &&
@@ -552,6 +639,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   const std::int64_t fresh_us = std::clamp<std::int64_t>(t_end_us - hold_previous_t_us_, 0, window_us);
   hold_previous_t_us_ = t_end_us;
   const StandstillEvidence ev = standstill_.observe(window, window_us, hold_newest_counted_us_ + 1, fresh_us);
+  noise_rate_hz_ = ev.noise_rate_hz;
   if (!window.empty()) hold_newest_counted_us_ = std::max(hold_newest_counted_us_, window.back().t_us);
   if (!ev.moving) {
     track_.unhealthy_in_a_row = 0;  // "in a row": a window without motion ends a run of unmeasurable ones
@@ -595,6 +683,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   if (u.healthy && !jumped) {
     track_.unhealthy_in_a_row = 0;
     track_.previous.reset();
+    track_.fitted.reset();
     track_.last = camera::StampedPose{t_end_us, u.T_cam_model};
     track_.last_update = u;
     ++counters_.hold_resumes;

@@ -42,16 +42,24 @@ struct EstimatorOptions {
   /// still uses the window alone.
   std::int64_t init_accumulate_us = 300'000;
   std::size_t init_target_events = 4000;
-  /// > 0: every other attempt uses the newest init_long_target_events of the last init_long_accumulate_us instead
-  /// (a slow target's edges move too little in 300 ms for LSD: no line at 0.02 m/s). Off by default: measured on
-  /// 0.02 m/s scenes it initialises (0 -> 47-89 % valid) but also on wrong poses at 5 Hz/px (roadheader 188 mm
-  /// RMSE) until initialisation is verified (issue 21); try e.g. 1'000'000 / 20'000.
+  /// > 0: every other attempt (and every attempt whose init_accumulate_us holds fewer than init_min_events) uses the
+  /// newest init_long_target_events of the last init_long_accumulate_us instead (a slow target's edges move too
+  /// little in 300 ms for LSD: no line at 0.01-0.02 m/s). Off by default: with 1'000'000 the slow scenes initialise
+  /// (docs/history.md, "Sparse windows and slow targets": slow valid 44 -> 63 %, wrong confident 36 -> 12) but the
+  /// clutter scenes without a prior accept wrong board poses from the long accumulation (2 -> 26 wrong confident) and
+  /// the standard set gains some (70 -> 116), so it is not on until initialisation refuses those.
   std::int64_t init_long_accumulate_us = 0;
   std::size_t init_long_target_events = 20'000;
-  /// Tracking on a sparse window (slow target, or most events filtered out) uses the newest track_min_events
-  /// events instead, none older than track_max_span_us (pose.md §8: windows sized by count, capped in time).
+  /// Tracking on a sparse window (slow target, most events filtered out, or the target's events drowned in noise)
+  /// uses an accumulated history instead: the newest events holding track_min_events events of the target (the
+  /// count minus the noise the measured noise rate explains over the span). Its span is bounded by the motion:
+  /// at most track_max_blur_px of image motion at the last tracked speed (a still or slow target: long spans),
+  /// never more than track_history_max_us; track_max_span_us when the speed is not known yet (pose.md §8 and
+  /// ELOPET: windows sized by count, capped in time).
   std::size_t track_min_events = 1500;
   std::int64_t track_max_span_us = 100'000;
+  double track_max_blur_px = 3.0;
+  std::int64_t track_history_max_us = 1'000'000;
   /// ... but only when the window has at least this many events of its own (a window without the target is
   /// not tracked on the target's past events).
   std::size_t track_min_window_events = 10;
@@ -64,6 +72,15 @@ struct EstimatorOptions {
   double max_step_deg = 10.0;
   /// Predict the next pose by constant velocity from the last two tracked poses (else: the last pose).
   bool constant_velocity = true;
+  /// An update that fits the window (the tracker's health tests and the step gate pass, and the events near the
+  /// fitted model exceed the noise) but whose verification is inconclusive (too little support along the model to
+  /// judge; a better symmetric alternative is a refutation) is not published and does not count towards
+  /// lost_after_windows: the model explains the events, there is just not enough of them to vouch for the pose. The
+  /// track is lost when no update was verified for this long. 0 (default): such updates count as unhealthy. Off:
+  /// measured with 1 s on the standstill and slow scenes (docs/history.md) it kept tracks alive through the
+  /// inconclusive windows of a moving target at 5 Hz/px, but a target that stopped during such a run could then
+  /// not be held (its last verified pose was older than the unverified fits) and was lost.
+  std::int64_t unverified_max_us = 0;
   /// Standstill (docs/algorithms.md "Holding"): an unhealthy update whose window shows no motion near the last
   /// pose's model beyond the noise (standstill.hpp) holds that pose (status holding) instead of counting as
   /// unhealthy. false: every unhealthy update counts (the behaviour before holding).
@@ -119,6 +136,9 @@ struct InitJob {
   /// on accumulated events is a blur of the target's motion over their span, so it is polished on these before
   /// it is published as the pose at t_us. Empty: the same as `events`.
   std::vector<Event> fresh;
+  /// With the long accumulation (init_long_accumulate_us): the shorter one, the found pose is polished on it too
+  /// and that polish wins when healthy (fresher: a moving target's long accumulation is blurred by its motion).
+  std::vector<Event> shorter;
   std::int64_t t_us{0};                       ///< the window time a found pose refers to
   std::optional<camera::PosePrior> search;    ///< searched first: the configured prior, or around the last good pose
   std::optional<camera::PosePrior> fallback;  ///< searched when the first search fails (every other attempt)
@@ -203,6 +223,9 @@ class PoseEstimator {
   /// At most this many tracking updates catch up an attempt (~1 ms each; on the worker when the caller uses
   /// advance_initialisation, else on the window that applies it).
   static constexpr std::int64_t kCatchUpMaxSlices = 8;
+  /// A tracking history (track_min_events of the target, see the options) holds at most this many events
+  /// (3.2 MB): a slow target under heavy noise is tracked on the newest.
+  static constexpr std::size_t kHistoryMaxEvents = 200'000;
 
   [[nodiscard]] TrackStatus status() const noexcept { return status_; }
   [[nodiscard]] const EstimatorCounters& counters() const noexcept { return counters_; }
@@ -221,21 +244,38 @@ class PoseEstimator {
     std::optional<TrackUpdate> previous_update;  ///< the one that measured `previous`
     int healthy_in_a_row{0};                     ///< healthy updates in a row since the initialisation
     bool confirmed{false};  ///< confirm_windows healthy updates in a row seen since the initialisation
+    /// The background rate (events per pixel per second) an accumulated history's noise is estimated with: the
+    /// estimator's last measurement (noise_rate_hz_), 0 on a worker's catch-up (the window count alone).
+    double noise_rate_hz{0.0};
+    /// The newest update that fitted the window (tracker-healthy, within the step gate) but that the verification
+    /// could not confirm (too little support to judge, not refuted): never published, only predicted from.
+    std::optional<camera::StampedPose> fitted{};
+    bool step_unverified{false};  ///< the last step was such an update
   };
   /// history: the remembered events up to this window (recent_, or a prefix of it when catching up).
   PoseEstimate track(EventSpan window, std::int64_t t_end_us, EventSpan history);
   /// The track a successful outcome starts: its pose at its time, and the pose before when it was advanced.
   static TrackState start_state(const InitOutcome& outcome);
   /// One tracking update of `state` (const: also run on the worker by advance_initialisation).
+  /// allow_unverified: an inconclusive verification may continue the track unpublished (unverified_max_us; the
+  /// caller then checks the fit's support); else it counts as unhealthy (the worker's catch-up).
   PoseEstimate track_step(TrackState& state, EventSpan window, std::int64_t t_end_us, EventSpan history,
-                          std::uint64_t& unhealthy) const;
+                          std::uint64_t& unhealthy, bool allow_unverified = false) const;
   /// The catch-up slices after a found pose at from_us, up to the window at to_us, over `events` (the
   /// remembered events). Returns the slices tracked; stops when the state is lost.
   int catch_up(TrackState& state, std::int64_t from_us, std::int64_t to_us, EventSpan events,
                std::uint64_t& unhealthy) const;
   PoseEstimate counted(PoseEstimate out);
   void remember(EventSpan window, std::int64_t t_us);
-  [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const;
+  [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const {
+    return tracking_events(track_, window, t_us, history);
+  }
+  /// The events a tracking update of `state` uses (the window, or the accumulated history: track_min_events).
+  [[nodiscard]] EventSpan tracking_events(const TrackState& state, EventSpan window, std::int64_t t_us,
+                                          EventSpan history) const;
+  /// The span (us) over which the model's image moves track_max_blur_px at the state's last tracked speed
+  /// (track_max_span_us when unknown), at most track_history_max_us.
+  [[nodiscard]] std::int64_t history_span_us(const TrackState& state) const;
   [[nodiscard]] camera::Pose predict(const TrackState& state, std::int64_t t_end_us) const;
   void set_status(TrackStatus s);
   /// Standstill: after an unhealthy update (state restored to before it), does this window allow a hold at the
@@ -271,6 +311,9 @@ class PoseEstimator {
   std::int64_t hold_previous_t_us_{0};        ///< the previous window's time while holding
   int hold_contradicted_{0};                  ///< windows in a row with unexplained activity while holding
   std::int64_t hold_newest_counted_us_{0};    ///< newest event counted into the hold's totals
+  /// Background activity near the model (events per pixel per second), measured by the last support test
+  /// (signal_near) or hold window: what the noise explains of an accumulated history's events.
+  double noise_rate_hz_{0.0};
   EstimatorCounters counters_;
 };
 
