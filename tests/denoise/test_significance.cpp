@@ -25,6 +25,20 @@ SignificanceOptions at_rate(double rate_hz) {
   return o;
 }
 
+/// Uniform background activity at rate_hz per pixel over [0, duration_us] on the DAVIS346, time-sorted.
+std::vector<Event> pure_noise(double rate_hz, std::int64_t duration_us, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  const auto n =
+      static_cast<std::size_t>(rate_hz * kDavis346.width * kDavis346.height * static_cast<double>(duration_us) / 1e6);
+  std::vector<Event> ev(n);
+  std::uniform_int_distribution<int> x(0, kDavis346.width - 1), y(0, kDavis346.height - 1);
+  std::uniform_int_distribution<std::int64_t> t(0, duration_us);
+  std::bernoulli_distribution pol(0.5);
+  for (auto& e : ev) e = {t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), pol(rng)};
+  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  return ev;
+}
+
 /// A straight edge moving along +x at `speed_px_s`: column x fires at t0 + x / speed, rows y0..y0+rows-1.
 std::vector<Event> edge(double speed_px_s, int x0, int columns, int y0, int rows, std::int64_t t0_us) {
   std::vector<Event> ev;
@@ -148,15 +162,9 @@ TEST(Significance, RecencyTermKeepsDenseSupport) {
 
 TEST(Significance, RateEstimateAndFalseAlarmsOnPureNoise) {
   // Uniform BA at 5 Hz/px over 2 s: the estimate converges to 5 and at most ~alpha of the events pass.
-  std::mt19937_64 rng(7);
   const double rate = 5.0;
-  const auto n = static_cast<std::size_t>(rate * kDavis346.width * kDavis346.height * 2.0);
-  std::vector<Event> ev(n);
-  std::uniform_int_distribution<int> x(0, kDavis346.width - 1), y(0, kDavis346.height - 1);
-  std::uniform_int_distribution<std::int64_t> t(0, 2'000'000);
-  std::bernoulli_distribution pol(0.5);
-  for (auto& e : ev) e = {t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), pol(rng)};
-  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  const std::vector<Event> ev = pure_noise(rate, 2'000'000, 7);
+  const std::size_t n = ev.size();
   SignificanceOptions o;
   Significance f(kDavis346, o);
   std::size_t kept = 0;
@@ -183,15 +191,8 @@ TEST(Significance, RateEstimatePicksTheRootTheNoiseGives) {
 
 TEST(Significance, HeavyNoiseIsEstimatedAndRemoved) {
   // Uniform BA at 100 Hz/px over 0.5 s (4.5 M events): the estimate reaches 100 and at most ~alpha pass after it.
-  std::mt19937_64 rng(11);
   const double rate = 100.0;
-  const auto n = static_cast<std::size_t>(rate * kDavis346.width * kDavis346.height * 0.5);
-  std::vector<Event> ev(n);
-  std::uniform_int_distribution<int> x(0, kDavis346.width - 1), y(0, kDavis346.height - 1);
-  std::uniform_int_distribution<std::int64_t> t(0, 500'000);
-  std::bernoulli_distribution pol(0.5);
-  for (auto& e : ev) e = {t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), pol(rng)};
-  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  const std::vector<Event> ev = pure_noise(rate, 500'000, 11);
   SignificanceOptions o;
   o.lookahead_us = 0;
   Significance f(kDavis346, o);
@@ -487,15 +488,9 @@ TEST(SignificanceLookahead, JointThresholdsFollowTheNoiseModel) {
 }
 
 TEST(SignificanceLookahead, FalseAlarmsOnPureNoise) {
-  std::mt19937_64 rng(9);
   const double rate = 5.0;
-  const auto n = static_cast<std::size_t>(rate * kDavis346.width * kDavis346.height * 2.0);
-  std::vector<Event> ev(n);
-  std::uniform_int_distribution<int> x(0, kDavis346.width - 1), y(0, kDavis346.height - 1);
-  std::uniform_int_distribution<std::int64_t> t(0, 2'000'000);
-  std::bernoulli_distribution pol(0.5);
-  for (auto& e : ev) e = {t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), pol(rng)};
-  std::sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  const std::vector<Event> ev = pure_noise(rate, 2'000'000, 9);
+  const std::size_t n = ev.size();
   auto f = make_filter("significance", {}, kDavis346);
   const auto d = run_filter(*f, ev);
   EXPECT_LE(static_cast<double>(count_kept(d)), 2.0 * SignificanceOptions{}.alpha * static_cast<double>(n) + 10.0);
