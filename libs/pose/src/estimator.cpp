@@ -215,8 +215,8 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   }
   // Polish the initial pose with the tracker so the first published pose carries a robust scale and a covariance
   // like every later one, and is measured on the events a tracking update at job.t_us uses: a pose found on the
-  // accumulated events is polished on them first (the nearer start), then on the fresh ones (the accumulation
-  // spans up to init_accumulate_us of the target's motion, the fresh events at most track_max_span_us).
+  // accumulated events is polished on them first (the nearer start), then on the fresh ones (tracking_events: the
+  // window, or a history bounded by the model's image motion; the accumulation spans up to init_accumulate_us).
   out.polished = track_window(job.events, map_, model_, init.T_cam_model, options_.track);
   if (!job.shorter.empty()) {
     // Found on the long accumulation: the newer, shorter one gives the fresher pose when it can be verified on it.
