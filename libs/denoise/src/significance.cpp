@@ -457,7 +457,8 @@ double Significance::rate_from_zero_support(double r0, double r1, double all, do
   const double c1 = kNeighbours * kShortZeroSupportUs * 1e-6;
   if (!(all > 1.0 / c) || !(r1 > r0)) return small;
   const double from_ratio = std::log(r1 / r0) / (c - c1);
-  // lambda_2 by the iteration lambda = ln(lambda / r0) / c from above (decreases monotonically to it).
+  // lambda_2 by the iteration lambda = ln(lambda / r0) / c from a start above 1 / c (a contraction there, slope
+  // 1 / (c·lambda) < 1: it moves monotonically to lambda_2 from either side).
   double large = std::max(from_ratio, 2.0 / c);
   for (int it = 0; it < 200; ++it) {
     const double next = std::log(large / r0) / c;
