@@ -339,6 +339,56 @@ __attribute__((target("sse4.1"))) bool joint_may_pass_sse4(const LineArgs& a, st
   return _mm_movemask_epi8(hit) != 0;
 }
 
+/// The same with AVX2: two directions per register (one per 128-bit half), the 16 thresholds in two registers.
+__attribute__((target("avx2"))) bool joint_may_pass_avx2(const LineArgs& a, std::int32_t lookahead_us,
+                                                         const std::int32_t* joint_us, const std::int32_t* past,
+                                                         int past_count) noexcept {
+  const __m256i v_then = _mm256_set1_epi32(a.now);
+  const __m256i v_pol = _mm256_set1_epi32(a.polarity);
+  const __m256i v_one = _mm256_set1_epi32(1);
+  const __m256i v_zero = _mm256_setzero_si256();
+  const __m256i v_lookahead = _mm256_set1_epi32(lookahead_us);
+  const __m256i v_jitter = _mm256_set1_epi32(a.jitter_us);
+  const __m256 v_precision = _mm256_set1_ps(a.precision);
+  const __m256i v_highest = _mm256_set1_epi32(kNoMatch);
+  const __m256i v_lo = _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(joint_us)), v_one);
+  const __m256i v_hi = _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(joint_us + 8)), v_one);
+  __m256i c_lo = v_zero;
+  __m256i c_hi = v_zero;
+  // c += (x <= V_m), x in every lane (a macro: a lambda would not inherit the target attribute).
+#define EVPIPE_COUNT_AVX2(x)                                     \
+  do {                                                           \
+    const __m256i x_ = (x);                                      \
+    c_lo = _mm256_sub_epi32(c_lo, _mm256_cmpgt_epi32(v_lo, x_)); \
+    c_hi = _mm256_sub_epi32(c_hi, _mm256_cmpgt_epi32(v_hi, x_)); \
+  } while (false)
+  for (int k = 0; k < past_count; ++k) EVPIPE_COUNT_AVX2(_mm256_set1_epi32(std::max(past[k], 1)));
+  for (std::size_t i = 0; i < 8; i += 2) {
+    const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
+    const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
+    const __m256i r1 =
+        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre + off1) * 4)),
+                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre + off0) * 4)));
+    const __m256i s1 = _mm256_sub_epi32(_mm256_srai_epi32(r1, 1), v_then);
+    const __m256i ok1 = _mm256_andnot_si256(
+        _mm256_cmpgt_epi32(s1, v_lookahead),
+        _mm256_and_si256(_mm256_cmpgt_epi32(s1, v_zero), _mm256_cmpeq_epi32(_mm256_and_si256(r1, v_one), v_pol)));
+    const __m256i tol =
+        _mm256_add_epi32(v_jitter, _mm256_cvttps_epi32(_mm256_mul_ps(v_precision, _mm256_cvtepi32_ps(s1))));
+    const __m256i reach = _mm256_sub_epi32(_mm256_add_epi32(s1, s1), tol);
+    const __m256i ok = _mm256_andnot_si256(_mm256_cmpgt_epi32(reach, v_lookahead), ok1);
+    __m256i m = _mm256_blendv_epi8(v_highest, s1, ok);
+    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));    // in every lane of each half
+    EVPIPE_COUNT_AVX2(_mm256_permute2x128_si256(m, m, 0x00));  // direction i
+    EVPIPE_COUNT_AVX2(_mm256_permute2x128_si256(m, m, 0x11));  // direction i + 1
+  }
+#undef EVPIPE_COUNT_AVX2
+  const __m256i hit = _mm256_or_si256(_mm256_cmpgt_epi32(c_lo, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)),
+                                      _mm256_cmpgt_epi32(c_hi, _mm256_setr_epi32(8, 9, 10, 11, 12, 13, 14, 15)));
+  return _mm256_movemask_epi8(hit) != 0;
+}
+
 #endif
 
 /// The edge-line kernel for this CPU, or the one EVPIPE_SIGNIFICANCE_KERNEL names (scalar, sse4, avx2; for tests
@@ -794,7 +844,8 @@ bool Significance::joint_may_pass(const Event& e, const std::int32_t* past_ages,
 #if defined(EVPIPE_SIGNIFICANCE_X86)
   if (kernel_ != kScalar) {
     const LineArgs args{ring_.data(), stride_, centre, then, polarity, line_us_.data(), jitter_us_, precision_};
-    return joint_may_pass_sse4(args, lookahead_us_, joint_us_.data(), past_ages, past_count);
+    return kernel_ == kAvx2 ? joint_may_pass_avx2(args, lookahead_us_, joint_us_.data(), past_ages, past_count)
+                            : joint_may_pass_sse4(args, lookahead_us_, joint_us_.data(), past_ages, past_count);
   }
 #endif
   // The same count, one entry at a time (a superset of what future_lines examines on any input order).
