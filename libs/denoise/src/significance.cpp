@@ -972,13 +972,18 @@ class SignificanceFilter final : public Filter {
 
   Entry& at(std::size_t i) noexcept { return fifo_[(head_ + i) & (fifo_.size() - 1)]; }
   Entry& append() {
-    if (size_ == fifo_.size()) {  // grow (power of two), unrolling the ring
-      std::vector<Entry> bigger(std::max<std::size_t>(1024, 2 * fifo_.size()));
-      for (std::size_t i = 0; i < size_; ++i) bigger[i] = at(i);
-      fifo_.swap(bigger);
-      head_ = 0;
-    }
+    reserve(size_ + 1);
     return at(size_++);
+  }
+  /// Room for n entries (grows to a power of two, unrolling the ring).
+  void reserve(std::size_t n) {
+    if (n <= fifo_.size()) return;
+    std::size_t capacity = std::max<std::size_t>(1024, 2 * fifo_.size());
+    while (capacity < n) capacity *= 2;
+    std::vector<Entry> bigger(capacity);
+    for (std::size_t i = 0; i < size_; ++i) bigger[i] = at(i);
+    fifo_.swap(bigger);
+    head_ = 0;
   }
   /// One chunk's thresholds for the joint pass: joint_us[k] holds from the chunk's event index[k] on (the values
   /// after the causal pass's accept() of the event before it, as decide_before sees them in the sequential loop).
@@ -991,9 +996,9 @@ class SignificanceFilter final : public Filter {
     }
   };
 
-  /// The causal tests of a chunk into stage_ (impl_'s rings and rate; nothing else is touched).
+  /// The causal tests of a chunk into the FIFO's slots size_, size_ + 1, ... (reserved; not yet counted in size_,
+  /// so the joint pass does not see them) and impl_'s rings and rate; nothing else is touched.
   void causal_pass(EventSpan chunk, ThresholdLog& log) {
-    stage_.resize(chunk.size());
     log.clear();
     for (std::size_t i = 0; i < chunk.size(); ++i) {
       const auto& v = impl_.joint_thresholds_us();
@@ -1002,7 +1007,7 @@ class SignificanceFilter final : public Filter {
         log.joint_us.push_back(v);
       }
       const bool keep = impl_.accept(chunk[i]);
-      Entry& slot = stage_[i];
+      Entry& slot = at(size_ + i);
       slot.event = chunk[i];
       slot.score = impl_.last_score();
       slot.state = keep ? kKeep : kPending;
@@ -1022,7 +1027,8 @@ class SignificanceFilter final : public Filter {
   }
 
   /// Two tasks per step: the causal pass of chunk c beside the joint pass of chunk c − 1 (disjoint state: impl_ and
-  /// stage_ / joint_, the FIFO and its counters); between steps chunk c enters the FIFO and what is decided leaves.
+  /// the FIFO's reserved slots / joint_, the FIFO's counted entries and its counters); between steps chunk c enters
+  /// the FIFO and what is decided leaves.
   /// The push's last chunk gets its joint pass alone, so nothing waits for the next push: the same decisions, as
   /// soon, as the sequential loop.
   void split_push(EventSpan events, Decisions& out) {
@@ -1030,6 +1036,7 @@ class SignificanceFilter final : public Filter {
     EventSpan behind;  // in the FIFO, joint pass not yet run
     while (done < events.size() || !behind.empty()) {
       const EventSpan ahead = events.subspan(done, std::min(kChunk, events.size() - done));
+      reserve(size_ + ahead.size());
       if (!ahead.empty() && !behind.empty()) {
         runner_(2, [&](int task) {
           if (task == 0) {
@@ -1043,7 +1050,7 @@ class SignificanceFilter final : public Filter {
       } else {
         causal_pass(ahead, log_[0]);
       }
-      for (std::size_t i = 0; i < ahead.size(); ++i) append() = stage_[i];
+      size_ += ahead.size();  // the chunk's entries enter the FIFO
       release(out);
       std::swap(log_[0], log_[1]);
       behind = ahead;
@@ -1092,7 +1099,6 @@ class SignificanceFilter final : public Filter {
   TaskRunner runner_;
   std::unique_ptr<Significance> joint_;  // the joint pass's rings (set_parallelism)
   bool pushed_ = false;
-  std::vector<Entry> stage_;
   std::array<ThresholdLog, 2> log_;  // [0] written by the causal pass, [1] read by the joint pass
   std::vector<Entry> fifo_;
   std::size_t head_ = 0;
