@@ -548,7 +548,7 @@ TEST(SignificanceLookahead, BoundDecidesAsTheFullJointTest) {
 }
 
 TEST(SignificanceLookahead, SecondCoreDecidesAndScoresAsOne) {
-  // set_parallelism(2): the joint pass on its own ring copy beside the causal pass (chunks of 4096 events). The same
+  // set_parallelism(2): the joint pass on its own ring copy beside the causal pass (chunks of 1024 events). The same
   // decisions and score bits as one thread, for pushes of any size (smaller and larger than a chunk), with the
   // bound on and off, across a rate change (thresholds move), a rebase and out-of-order events.
   std::vector<Event> ev;
@@ -579,7 +579,7 @@ TEST(SignificanceLookahead, SecondCoreDecidesAndScoresAsOne) {
     auto one = make_filter("significance", settings, kDavis346);
     const Decisions ref = run_filter(*one, ev, 3000);
     EXPECT_GT(count_kept(ref), 1000U);
-    for (const std::size_t chunk : {std::size_t{0}, std::size_t{1000}, std::size_t{20'000}}) {
+    for (const std::size_t chunk : {std::size_t{0}, std::size_t{1000}, std::size_t{1500}, std::size_t{20'000}}) {
       auto two = make_filter("significance", settings, kDavis346);
       two->set_parallelism(2, threads);
       const Decisions d = run_filter(*two, ev, chunk);
