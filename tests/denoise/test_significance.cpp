@@ -7,10 +7,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <functional>
 #include <random>
 #include <string>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -545,51 +543,6 @@ TEST(SignificanceLookahead, BoundDecidesAsTheFullJointTest) {
   for (const auto& r : f->report())
     if (r.key == "lookahead_bound_drops") drops = r.value;
   EXPECT_GT(drops, 0.8 * static_cast<double>(noise.size()));
-}
-
-TEST(SignificanceLookahead, SecondCoreDecidesAndScoresAsOne) {
-  // set_parallelism(2): the joint pass on its own ring copy beside the causal pass (chunks of 1024 events). The same
-  // decisions and score bits as one thread, for pushes of any size (smaller and larger than a chunk), with the
-  // bound on and off, across a rate change (thresholds move), a rebase and out-of-order events.
-  std::vector<Event> ev;
-  std::int64_t base = 0;
-  std::uint64_t seed = 31;
-  for (const double rate : {5.0, 130.0, 1.0}) {
-    auto part = pure_noise(rate, rate > 100.0 ? 50'000 : 300'000, seed++);
-    for (auto& e : part) e.t_us += base;
-    for (const double speed : {3.0, 60.0, 400.0}) {
-      auto e =
-          edge(speed, 20 + static_cast<int>(speed) % 200, 30, 30 + static_cast<int>(speed) % 150, 20, base + 5'000);
-      for (auto& x : e) x.polarity = speed > 20.0;
-      part.insert(part.end(), e.begin(), e.end());
-    }
-    std::stable_sort(part.begin(), part.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
-    base = part.back().t_us + (rate == 130.0 ? 600'000'000 : 1);  // then a 10-minute jump: a rebase
-    ev.insert(ev.end(), part.begin(), part.end());
-  }
-  std::swap(ev[ev.size() / 3], ev[ev.size() / 3 + 50]);  // out of order once: the scalar walk from there
-  const auto threads = [](int n, const std::function<void(int)>& task) {
-    std::vector<std::thread> pool;
-    for (int k = 1; k < n; ++k) pool.emplace_back(task, k);
-    task(0);
-    for (auto& t : pool) t.join();
-  };
-  for (const std::string exact : {"true", "false"}) {
-    const Settings settings = {{"exact_scores", exact}};
-    auto one = make_filter("significance", settings, kDavis346);
-    const Decisions ref = run_filter(*one, ev, 3000);
-    EXPECT_GT(count_kept(ref), 1000U);
-    for (const std::size_t chunk : {std::size_t{0}, std::size_t{1000}, std::size_t{1500}, std::size_t{20'000}}) {
-      auto two = make_filter("significance", settings, kDavis346);
-      two->set_parallelism(2, threads);
-      const Decisions d = run_filter(*two, ev, chunk);
-      EXPECT_EQ(d.keep, ref.keep) << exact << " " << chunk;
-      ASSERT_EQ(d.score.size(), ref.score.size());
-      EXPECT_EQ(std::memcmp(d.score.data(), ref.score.data(), d.score.size() * sizeof(float)), 0)
-          << exact << " " << chunk;
-      EXPECT_EQ(two->report().size(), one->report().size());
-    }
-  }
 }
 
 TEST(Significance, ListedWithItsParameters) {

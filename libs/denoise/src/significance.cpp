@@ -754,24 +754,6 @@ bool Significance::accept(const Event& e) noexcept {
   return keep;
 }
 
-void Significance::stamp(const Event& e) noexcept {
-  // accept()'s bookkeeping of the rings' clock, in its order, then its stamp.
-  if (!geometry_.contains(e.x, e.y)) return;
-  if (!started_) {
-    started_ = true;
-    base_us_ = e.t_us;
-    last_t_us_ = e.t_us;
-  }
-  ordered_ = ordered_ && e.t_us >= last_t_us_;
-  last_t_us_ = e.t_us;
-  if (e.t_us - base_us_ >= kRebaseAt) rebase(e.t_us);
-  const auto now = static_cast<std::int32_t>(e.t_us - base_us_);
-  const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
-  std::int32_t* own = ring_.data() + centre * kRing;
-  std::copy_backward(own, own + kRing - 1, own + kRing);
-  own[0] = now * 2 + (e.polarity ? 1 : 0);
-}
-
 void Significance::prefetch_block(const Event& e) const noexcept {
   if (!geometry_.contains(e.x, e.y)) return;
   const std::int64_t c = (e.y + kPad) * stride_ + (e.x + kPad);
@@ -898,28 +880,12 @@ namespace {
 class SignificanceFilter final : public Filter {
  public:
   SignificanceFilter(const SensorGeometry& geometry, const SignificanceOptions& options)
-      : impl_(geometry, options),
-        geometry_(geometry),
-        options_(options),
-        lookahead_us_(options.lookahead_us),
-        exact_scores_(options.exact_scores) {}
+      : impl_(geometry, options), lookahead_us_(options.lookahead_us), exact_scores_(options.exact_scores) {}
 
   [[nodiscard]] std::string_view name() const noexcept override { return "significance"; }
-  /// tasks >= 2: the look-ahead's joint decisions run beside the causal tests (split_push). Taken before the first
-  /// push only (a copy of the rings starts with the stream); the decisions are the same either way.
-  void set_parallelism(int tasks, TaskRunner runner) override {
-    if (pushed_ || tasks < 2 || !runner) return;
-    runner_ = std::move(runner);
-    if (!joint_) joint_ = std::make_unique<Significance>(geometry_, options_);
-  }
   void push(EventSpan events, Decisions& out) override {
-    pushed_ = pushed_ || !events.empty();
-    if (joint_) {
-      split_push(events, out);
-      return;
-    }
     for (const Event& e : events) {
-      decide_before(impl_, e.t_us - lookahead_us_);
+      decide_before(e.t_us - lookahead_us_);
       release(out);
       const bool keep = impl_.accept(e);
       const float score = impl_.last_score();
@@ -938,13 +904,11 @@ class SignificanceFilter final : public Filter {
     release(out);
   }
   void finish(Decisions& out) override {
-    if (joint_) joint_->set_joint_thresholds_us(impl_.joint_thresholds_us());  // after the last accept(), as impl_'s
-    decide_before(joint_ ? *joint_ : impl_, std::numeric_limits<std::int64_t>::max());
+    decide_before(std::numeric_limits<std::int64_t>::max());
     release(out);
   }
   void reset() override {
     impl_.reset();
-    if (joint_) joint_->reset();
     head_ = size_ = next_ = 0;
   }
   [[nodiscard]] std::size_t pending() const noexcept override { return size_; }
@@ -972,107 +936,29 @@ class SignificanceFilter final : public Filter {
 
   Entry& at(std::size_t i) noexcept { return fifo_[(head_ + i) & (fifo_.size() - 1)]; }
   Entry& append() {
-    reserve(size_ + 1);
+    if (size_ == fifo_.size()) {  // grow (power of two), unrolling the ring
+      std::vector<Entry> bigger(std::max<std::size_t>(1024, 2 * fifo_.size()));
+      for (std::size_t i = 0; i < size_; ++i) bigger[i] = at(i);
+      fifo_.swap(bigger);
+      head_ = 0;
+    }
     return at(size_++);
   }
-  /// Room for n entries (grows to a power of two, unrolling the ring).
-  void reserve(std::size_t n) {
-    if (n <= fifo_.size()) return;
-    std::size_t capacity = std::max<std::size_t>(1024, 2 * fifo_.size());
-    while (capacity < n) capacity *= 2;
-    std::vector<Entry> bigger(capacity);
-    for (std::size_t i = 0; i < size_; ++i) bigger[i] = at(i);
-    fifo_.swap(bigger);
-    head_ = 0;
-  }
-  /// One chunk's thresholds for the joint pass: joint_us[k] holds from the chunk's event index[k] on (the values
-  /// after the causal pass's accept() of the event before it, as decide_before sees them in the sequential loop).
-  struct ThresholdLog {
-    std::vector<std::uint32_t> index;
-    std::vector<std::array<std::int32_t, 16>> joint_us;
-    void clear() noexcept {
-      index.clear();
-      joint_us.clear();
-    }
-  };
-
-  /// The causal tests of a chunk into the FIFO's slots size_, size_ + 1, ... (reserved; not yet counted in size_,
-  /// so the joint pass does not see them) and impl_'s rings and rate; nothing else is touched.
-  void causal_pass(EventSpan chunk, ThresholdLog& log) {
-    log.clear();
-    for (std::size_t i = 0; i < chunk.size(); ++i) {
-      const auto& v = impl_.joint_thresholds_us();
-      if (log.joint_us.empty() || v != log.joint_us.back()) {
-        log.index.push_back(static_cast<std::uint32_t>(i));
-        log.joint_us.push_back(v);
-      }
-      const bool keep = impl_.accept(chunk[i]);
-      Entry& slot = at(size_ + i);
-      slot.event = chunk[i];
-      slot.score = impl_.last_score();
-      slot.state = keep ? kKeep : kPending;
-      slot.past_n = static_cast<std::uint8_t>(keep ? 0 : impl_.past_line_count());
-      if (!keep) slot.past = impl_.past_line_ages_us();
-    }
-  }
-
-  /// The joint decisions the sequential loop makes while it walks a chunk (already in the FIFO), on joint_'s rings.
-  void joint_pass(EventSpan chunk, const ThresholdLog& log) noexcept {
-    std::size_t k = 0;
-    for (std::size_t j = 0; j < chunk.size(); ++j) {
-      if (k < log.index.size() && log.index[k] == j) joint_->set_joint_thresholds_us(log.joint_us[k++]);
-      decide_before(*joint_, chunk[j].t_us - lookahead_us_);
-      joint_->stamp(chunk[j]);
-    }
-  }
-
-  /// Two tasks per step: the causal pass of chunk c beside the joint pass of chunk c − 1 (disjoint state: impl_ and
-  /// the FIFO's reserved slots / joint_, the FIFO's counted entries and its counters); between steps chunk c enters
-  /// the FIFO and what is decided leaves.
-  /// The push's last chunk gets its joint pass alone, so nothing waits for the next push: the same decisions, as
-  /// soon, as the sequential loop.
-  void split_push(EventSpan events, Decisions& out) {
-    std::size_t done = 0;
-    EventSpan behind;  // in the FIFO, joint pass not yet run
-    while (done < events.size() || !behind.empty()) {
-      const EventSpan ahead = events.subspan(done, std::min(kChunk, events.size() - done));
-      reserve(size_ + ahead.size());
-      if (!ahead.empty() && !behind.empty()) {
-        runner_(2, [&](int task) {
-          if (task == 0) {
-            causal_pass(ahead, log_[0]);
-          } else {
-            joint_pass(behind, log_[1]);
-          }
-        });
-      } else if (!behind.empty()) {
-        joint_pass(behind, log_[1]);
-      } else {
-        causal_pass(ahead, log_[0]);
-      }
-      size_ += ahead.size();  // the chunk's entries enter the FIFO
-      release(out);
-      std::swap(log_[0], log_[1]);
-      behind = ahead;
-      done += ahead.size();
-    }
-  }
-
-  /// Decides every waiting event with t_us < `bound` (= the new event's time − L) on `rings` (impl_, or joint_ when
-  /// split): they then hold exactly the events up to its t + L.
-  void decide_before(Significance& rings, std::int64_t bound) noexcept {
+  /// Decides every waiting event with t_us < `bound` (= the new event's time − L): the rings then hold exactly the
+  /// events up to its t + L.
+  void decide_before(std::int64_t bound) noexcept {
     for (; next_ < size_; ++next_) {
       Entry& x = at(next_);
       if (x.event.t_us >= bound) break;
       // The rings it reads were last touched up to L ago: start fetching those of the events decided next.
-      if (next_ + kPrefetchAhead < size_) rings.prefetch_block(at(next_ + kPrefetchAhead).event);
+      if (next_ + kPrefetchAhead < size_) impl_.prefetch_block(at(next_ + kPrefetchAhead).event);
       if (x.state != kPending) continue;
-      if (!exact_scores_ && !rings.joint_may_pass(x.event, x.past.data(), x.past_n)) {
+      if (!exact_scores_ && !impl_.joint_may_pass(x.event, x.past.data(), x.past_n)) {
         x.state = kDrop;  // joint_ratio < 1 for certain: the same decision (the score stays the causal one)
         ++bound_drops_;
         continue;
       }
-      const float joint = rings.joint_ratio(x.event, x.past.data(), x.past_n);
+      const float joint = impl_.joint_ratio(x.event, x.past.data(), x.past_n);
       x.score = std::max(x.score, joint);
       x.state = joint >= 1.0F ? kKeep : kDrop;
       kept_joint_ += joint >= 1.0F ? 1 : 0;
@@ -1090,18 +976,9 @@ class SignificanceFilter final : public Filter {
     }
   }
 
-  // Events per step of split_push (~0.1 ms of work at high noise): a push of 8192 events (source.batch_events)
-  // runs 8 steps, of which only the last chunk's joint pass is alone.
-  static constexpr std::size_t kChunk = 1024;
   Significance impl_;
-  SensorGeometry geometry_;
-  SignificanceOptions options_;
   std::int64_t lookahead_us_;
   bool exact_scores_;
-  TaskRunner runner_;
-  std::unique_ptr<Significance> joint_;  // the joint pass's rings (set_parallelism)
-  bool pushed_ = false;
-  std::array<ThresholdLog, 2> log_;  // [0] written by the causal pass, [1] read by the joint pass
   std::vector<Entry> fifo_;
   std::size_t head_ = 0;
   std::size_t size_ = 0;

@@ -109,12 +109,6 @@ class Significance {
   /// candidate) is <= its match, and #{merged ages <= V_m} <= #{past ages <= V_m} + #{candidates <= V_m}. The joint
   /// test passes iff that count reaches m for some m; when the bound's does not, it cannot.
   [[nodiscard]] bool joint_may_pass(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
-  /// The look-ahead's second ring copy (SignificanceFilter with parallelism): only what accept(e) does to the rings
-  /// and their clock (base, order, rebase) - no rate estimate, no test. A copy fed every event by stamp() holds the
-  /// same rings as the instance fed by accept(), so joint_ratio / joint_may_pass give the same results on it once
-  /// given the same joint thresholds (set_joint_thresholds_us).
-  void stamp(const Event& e) noexcept;
-  void set_joint_thresholds_us(const std::array<std::int32_t, 16>& v) noexcept { joint_us_ = v; }
   /// Starts fetching the rings joint_ratio(e, ...) reads first.
   void prefetch_block(const Event& e) const noexcept;
 
