@@ -7,14 +7,14 @@ Runs only evpipe's own binaries; no third-party Python package is needed:
      (planar target seed 1, roadheader wireframe seed 2, 3 s), one LONG roadheader recording (--long-s, 60 s)
      for "RSS flat over a long file", and one HIGH-RATE roadheader recording whose background activity
      (--high-rate-hz, 130 Hz/pixel x 346 x 260 ≈ 11.7 Mev/s) brings it near the DAVIS346's 12 Mev/s peak;
-  2. for every scene and --denoise curvature / baf / none:
+  2. for every scene and --denoise significance (the default) / curvature / baf / none:
        evpipe --replay SCENE --speed max --no-progress --json --camera --model --prior --lcm-url memq://
      (memq = LCM in-process: no multicast route needed); per run: events, wall time of the process, Mev/s =
      events / wall, x real time = recording length / wall, peak RSS (os.wait4's rusage of that one child), the
      RSS over time (/proc/PID/status VmRSS every --sample-s), and evpipe's latency histograms; the high-rate
      stream also with pose.init_worker: on (as the service runs; the default keeps a --speed max replay
      deterministic with in-line attempts) and without the pose stage (with denoise.threads auto and 1);
-  3. every scene once more at --speed 1 (curvature): at --speed max the latencies include queueing behind an
+  3. every scene once more at --speed 1 (the first --denoise, significance): at --speed max the latencies include queueing behind an
      unpaced source, so the real-time figure of the "window end → LCM p99 ≤ 2 ms" goal is taken here;
   4. one run over udpm (LCM's default transport) when `ip route` has a multicast route, else it says why not;
   4b. the preview's cost (issue 22): the long file (--quick: 15 s) at --speed 1 with the preview off and on
@@ -29,10 +29,10 @@ peak rate: on the sparse pose scenes the per-window pose cost, not the event rat
 good for throughput, ≤ 1 for RSS and latency). A shared, loaded machine moves these figures by tens of per cent.
 
   tools/bench_pipeline.py [--build build/release] [--native-build DIR] [--quick] [--cache DIR] [--long-s 60]
-                          [--high-rate-hz 130] [--denoise curvature,baf,none] [--udpm auto|off|URL]
+                          [--high-rate-hz 130] [--denoise significance,curvature,baf,none] [--udpm auto|off|URL]
                           [--preview-pairs 2] [--timeout S] [--out FILE] [--check]
 
---quick: the two 5 Hz/pixel scenes, a 15 s long file, no high-rate stream, curvature only (a smoke run).
+--quick: the two 5 Hz/pixel scenes, a 15 s long file, no high-rate stream, significance only (a smoke run).
 Exit status: 0 measured (goals met or not; with --check: 3 when a goal is not met); 1 a tool is missing or a
 run failed (every failure listed); 2 usage.
 """
@@ -67,7 +67,7 @@ PREVIEW_TOLERANCE = 0.10  # issue 22: window end → LCM p99 with the preview on
 RSS_FLAT_SHARE = 0.05
 RSS_FLAT_MB = 5.0
 RSS_FLAT_MIN_SAMPLES = 20  # fewer (a short --speed max run): shown, but the verdict is left to the longer runs
-DENOISERS = ["curvature", "baf", "none"]
+DENOISERS = ["significance", "curvature", "baf", "none"]  # the first: evpipe's default (config/evpipe.yaml)
 UDPM_URL = "udpm://239.255.76.67:7667?ttl=0"  # LCM's default group and port, kept on the host
 
 
@@ -159,6 +159,7 @@ class Run:
     summary: dict = field(default_factory=dict)
     wall_s: float = 0.0
     peak_rss_mb: float = 0.0
+    cpu_s: float = 0.0  # user + system CPU time of the process (all its threads; wait4's rusage)
     rss_mb: list[tuple[float, float]] = field(default_factory=list)  # (seconds since start, VmRSS MB)
     failure: str = ""
 
@@ -244,6 +245,7 @@ def run_evpipe(evpipe: str, scene_path: Path, s: Scene, denoise: str, speed: str
             t.join()
         p.returncode = os.waitstatus_to_exitcode(status)  # so Popen does not try to reap it again
         res.peak_rss_mb = rusage.ru_maxrss / 1024.0  # Linux: KiB
+        res.cpu_s = rusage.ru_utime + rusage.ru_stime
         out.seek(0)
         err.seek(0)
         stdout, stderr = out.read(), err.read()
@@ -322,10 +324,11 @@ def measure(label: str, build: Path, evpipe: str, scenes: dict[Scene, Path], den
     for s, path in scenes.items():
         if s.kind != "high-rate":
             continue
-        if "curvature" in denoisers:
-            print(f"{PROG}: [{label}] {s.name} --denoise curvature --speed max, pose.init_worker: on", file=sys.stderr,
+        if denoisers[0] != "none":
+            d0 = denoisers[0]
+            print(f"{PROG}: [{label}] {s.name} --denoise {d0} --speed max, pose.init_worker: on", file=sys.stderr,
                   flush=True)
-            br.runs.append(guarded(run_evpipe, evpipe, path, s, "curvature", "max", "memq://", a.sample_s, a.timeout,
+            br.runs.append(guarded(run_evpipe, evpipe, path, s, d0, "max", "memq://", a.sample_s, a.timeout,
                                    True, None, "on"))
         for d in denoisers:
             print(f"{PROG}: [{label}] {s.name} --denoise {d} --speed max, no pose stage", file=sys.stderr, flush=True)
@@ -411,7 +414,7 @@ def f(v: float | None, digits: int = 2) -> str:
 
 def run_table(br: BuildResult) -> list[str]:
     head = (f"{'scene':<34} {'denoise':<9} {'speed':>5} {'lcm':<5} {'events':>10} {'rec s':>6} {'wall s':>7} "
-            f"{'Mev/s':>7} {'x real':>7} {'RSS MB':>7} {'win→LCM p50/p99 ms':>19} {'event→LCM p50/p99 ms':>21} "
+            f"{'Mev/s':>7} {'CPU s':>6} {'x real':>7} {'RSS MB':>7} {'win→LCM p50/p99 ms':>19} {'event→LCM p50/p99 ms':>21} "
             f"{'init ms':>7} {'upd p99':>7} {'poses':>6} {'drops':>5}")
     out = [head, "-" * len(head)]
     for r in br.runs:
@@ -423,7 +426,7 @@ def run_table(br: BuildResult) -> list[str]:
         drops = sum((s.get("queue_drops") or {}).values()) + int(s.get("dropped_events", 0))
         out.append(
             f"{r.label:<34} {r.denoise:<9} {r.speed:>5} {scheme:<5} {r.events:>10} {s.get('duration_us', 0) / 1e6:>6.1f} "
-            f"{r.wall_s:>7.2f} {r.mev_s:>7.2f} {r.realtime:>7.1f} {r.peak_rss_mb:>7.1f} "
+            f"{r.wall_s:>7.2f} {r.mev_s:>7.2f} {r.cpu_s:>6.2f} {r.realtime:>7.1f} {r.peak_rss_mb:>7.1f} "
             f"{f(s.get('latency_window_ms_p50'), 2) + ' / ' + f(s.get('latency_window_ms_p99'), 2):>19} "
             f"{f(s.get('latency_event_ms_p50'), 1) + ' / ' + f(s.get('latency_event_ms_p99'), 1):>21} "
             f"{f(s.get('pose_init_ms'), 0):>7} {f(s.get('pose_update_ms_p99'), 2):>7} {s.get('lcm_poses', 0):>6} "
@@ -555,12 +558,12 @@ def main() -> None:
     ap.add_argument("--native-build", help="a second build (e.g. build/native) measured the same way and compared")
     ap.add_argument("--cache", default=str(Path.home() / ".cache" / "evpipe" / "bench-pipeline"),
                     help="scene cache (default ~/.cache/evpipe/bench-pipeline)")
-    ap.add_argument("--quick", action="store_true", help="5 Hz/px scenes, 15 s long file, no high-rate, curvature")
+    ap.add_argument("--quick", action="store_true", help="5 Hz/px scenes, 15 s long file, no high-rate, significance")
     ap.add_argument("--long-s", type=float, help="length of the long recording in s (default 60, --quick 15; 0: none)")
     ap.add_argument("--high-rate-hz", type=float, default=130.0,
                     help="background activity of the high-rate recording, Hz/pixel (default 130 ≈ 11.7 Mev/s; 0: none)")
-    ap.add_argument("--denoise", help="comma-separated evpipe --denoise values (default curvature,baf,none; "
-                    "--quick: curvature); the first is used for the --speed 1 runs")
+    ap.add_argument("--denoise", help="comma-separated evpipe --denoise values (default significance,curvature,baf,none; "
+                    "--quick: significance); the first is used for the --speed 1 runs")
     ap.add_argument("--no-realtime", action="store_true", help="skip the --speed 1 runs")
     ap.add_argument("--preview-pairs", type=int, default=2,
                     help="interleaved preview off/on pairs at --speed 1 on the long file (issue 22; 0: none)")
@@ -574,7 +577,7 @@ def main() -> None:
         a.long_s = 15.0 if a.quick else 60.0
     if a.long_s < 0 or a.high_rate_hz < 0 or a.sample_s <= 0 or a.timeout <= 0:
         ap.error("--long-s, --high-rate-hz must be >= 0; --sample-s, --timeout > 0")
-    denoisers = [d.strip() for d in (a.denoise or ("curvature" if a.quick else ",".join(DENOISERS))).split(",")
+    denoisers = [d.strip() for d in (a.denoise or ("significance" if a.quick else ",".join(DENOISERS))).split(",")
                  if d.strip()]
     if not denoisers:
         ap.error("--denoise: empty list")
@@ -614,7 +617,8 @@ def main() -> None:
         out += [f"## build `{br.build}` ({br.build_type})", ""]
         out += run_table(br)
         out += ["", "Mev/s = events / wall time of the evpipe process (start-up, file reading and the pose "
-                "initialisation included); x real = recording length / wall; RSS = peak (wait4 ru_maxrss); poses = "
+                "initialisation included); CPU s = user + system time of all its threads (on a machine shared with other work, "
+                "CPU s / 2 cores bounds the wall time the run would take alone); x real = recording length / wall; RSS = peak (wait4 ru_maxrss); poses = "
                 "LCM pose messages; latencies from evpipe --json (window ready → published, newest event read → "
                 "published); init ms = the first initialisation, upd p99 = pose compute per window (p99), both from evpipe.",
                 "", f"{br.udpm_note}", "", "RSS over time (VmRSS every "

@@ -79,8 +79,10 @@ TEST(RunConfig, DenoiseSectionKeepsParamsInOrder) {
 TEST(RunConfig, PipelineFilterParamsAddEvpipesCurvatureDefaultsWhereUnset) {
   using Params = std::vector<std::pair<std::string, std::string>>;
   const auto params_of = [](const std::string& yaml) { return parse_config(yaml).denoise.pipeline_params(); };
-  // The default filter (significance) gets nothing added.
-  EXPECT_EQ(params_of(""), Params{});
+  // The default filter (significance) gets exact_scores: false (it reads no scores), unless set.
+  EXPECT_EQ(params_of(""), (Params{{"exact_scores", "false"}}));
+  EXPECT_EQ(params_of("denoise: {params: {exact_scores: true}}"), (Params{{"exact_scores", "true"}}));
+  EXPECT_EQ(params_of("denoise: {filter: 'hotpixel,significance'}"), (Params{{"significance.exact_scores", "false"}}));
   // curvature alone: singular keep, and the adaptive threshold capped at the paper's 5.
   EXPECT_EQ(params_of("denoise: {filter: curvature}"),
             (Params{{"singular", "keep"}, {"adaptive", "true"}, {"adaptive_max_threshold", "5"}}));

@@ -496,6 +496,55 @@ TEST(SignificanceLookahead, FalseAlarmsOnPureNoise) {
   EXPECT_LE(static_cast<double>(count_kept(d)), 2.0 * SignificanceOptions{}.alpha * static_cast<double>(n) + 10.0);
 }
 
+TEST(SignificanceLookahead, BoundDecidesAsTheFullJointTest) {
+  // exact_scores = false: a pending event the 3x3 bound (Significance::joint_may_pass) rejects is dropped without the
+  // full future walk. The decisions must be those of the full joint test, with every kernel, from 5 to 130 Hz/px
+  // (where the bound drops most events) with edges at 3-400 px/s of both polarities; a kept event keeps its score,
+  // a dropped one at most its exact score (the causal one).
+  std::vector<Event> ev;
+  std::int64_t base = 0;
+  std::uint64_t seed = 21;
+  for (const double rate : {5.0, 130.0, 20.0}) {
+    auto part = pure_noise(rate, rate > 100.0 ? 60'000 : 300'000, seed++);
+    for (auto& e : part) e.t_us += base;
+    for (const double speed : {3.0, 15.0, 60.0, 400.0}) {
+      auto e =
+          edge(speed, 20 + static_cast<int>(speed) % 200, 30, 30 + static_cast<int>(speed) % 150, 20, base + 5'000);
+      for (auto& x : e) x.polarity = speed > 20.0;
+      part.insert(part.end(), e.begin(), e.end());
+    }
+    std::stable_sort(part.begin(), part.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    base = part.back().t_us + 1;
+    ev.insert(ev.end(), part.begin(), part.end());
+  }
+  for (const std::string kernel : {"scalar", "sse4", ""}) {
+    const Decisions exact = run_kernel(kernel, {{"initial_rate_hz", "5"}}, ev);
+    const Decisions bound = run_kernel(kernel, {{"initial_rate_hz", "5"}, {"exact_scores", "false"}}, ev);
+    ASSERT_EQ(bound.size(), ev.size());
+    EXPECT_EQ(bound.keep, exact.keep) << "kernel '" << kernel << "'";
+    EXPECT_GT(count_kept(exact), 1000U);
+    ASSERT_EQ(bound.score.size(), exact.score.size());
+    std::size_t lower = 0;
+    for (std::size_t i = 0; i < ev.size(); ++i) {
+      if (exact.keep[i] != 0) {
+        EXPECT_EQ(bound.score[i], exact.score[i]) << i;
+      } else {
+        EXPECT_LE(bound.score[i], exact.score[i]) << i;
+        lower += bound.score[i] < exact.score[i] ? 1 : 0;
+      }
+    }
+    EXPECT_GT(lower, 0U);  // the bound did drop events without their joint margin
+  }
+  // It drops most events at 130 Hz/px (~90 %): the count is in the filter's report.
+  auto f = make_filter("significance", {{"initial_rate_hz", "130"}, {"exact_scores", "false"}}, kDavis346);
+  const auto noise = pure_noise(130.0, 60'000, 5);
+  (void)run_filter(*f, noise);
+  double drops = 0.0;
+  for (const auto& r : f->report())
+    if (r.key == "lookahead_bound_drops") drops = r.value;
+  EXPECT_GT(drops, 0.8 * static_cast<double>(noise.size()));
+}
+
 TEST(Significance, ListedWithItsParameters) {
   const FilterSpec* s = find_filter("significance");
   ASSERT_NE(s, nullptr);

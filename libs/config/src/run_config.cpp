@@ -611,8 +611,16 @@ RunConfig load_config(const std::string& path) {
 std::vector<std::pair<std::string, std::string>> DenoiseConfig::pipeline_params() const {
   auto out = params;
   const auto names = filter_chain_names(filter);
-  if (std::find(names.begin(), names.end(), "curvature") == names.end()) return out;
   const bool single = names.size() == 1;
+  // significance: the pipeline reads no scores, so the look-ahead may drop what its bound rejects without the full
+  // walk (exact_scores: false; the same decisions), unless the user set it.
+  if (std::find(names.begin(), names.end(), "significance") != names.end()) {
+    const bool set = std::any_of(params.begin(), params.end(), [](const auto& kv) {
+      return kv.first == "exact_scores" || kv.first == "significance.exact_scores";
+    });
+    if (!set) out.emplace_back(single ? "exact_scores" : "significance.exact_scores", "false");
+  }
+  if (std::find(names.begin(), names.end(), "curvature") == names.end()) return out;
   // The user's value of `key`, bare or as curvature.KEY (a bare key counts in a chain too: only curvature has these
   // keys, so the chain gives them to it); nullptr when unset.
   const auto user_value = [&](std::string_view key) -> const std::string* {

@@ -284,6 +284,111 @@ __attribute__((target("sse4.1"))) void future_ages_sse4(const LineArgs& a, std::
   }
 }
 
+/// Significance::joint_may_pass with SSE4.1, branch-free: per direction, p + d's smallest s with the event's
+/// polarity, 0 < s <= L and 2s − tol(s) <= L (tol as future_ages_sse4 computes it; kNoMatch when none), in every
+/// lane; then per m = 1..16 the count of past ages and candidates <= V_m, against m.
+__attribute__((target("sse4.1"))) bool joint_may_pass_sse4(const LineArgs& a, std::int32_t lookahead_us,
+                                                           const std::int32_t* joint_us, const std::int32_t* past,
+                                                           int past_count) noexcept {
+  const __m128i v_then = _mm_set1_epi32(a.now);
+  const __m128i v_pol = _mm_set1_epi32(a.polarity);
+  const __m128i v_one = _mm_set1_epi32(1);
+  const __m128i v_zero = _mm_setzero_si128();
+  const __m128i v_lookahead = _mm_set1_epi32(lookahead_us);
+  const __m128i v_jitter = _mm_set1_epi32(a.jitter_us);
+  const __m128 v_precision = _mm_set1_ps(a.precision);
+  const __m128i v_highest = _mm_set1_epi32(kNoMatch);
+  // x <= V_m  <=>  V_m + 1 > x (V_m <= T, no overflow); an age counts as max(age, 1), as joint_ratio divides.
+  const auto* v = reinterpret_cast<const __m128i*>(joint_us);
+  const __m128i v0 = _mm_add_epi32(_mm_loadu_si128(v), v_one);
+  const __m128i v1 = _mm_add_epi32(_mm_loadu_si128(v + 1), v_one);
+  const __m128i v2 = _mm_add_epi32(_mm_loadu_si128(v + 2), v_one);
+  const __m128i v3 = _mm_add_epi32(_mm_loadu_si128(v + 3), v_one);
+  __m128i c0 = v_zero;
+  __m128i c1 = v_zero;
+  __m128i c2 = v_zero;
+  __m128i c3 = v_zero;
+  const auto count = [&](__m128i x) {  // x in every lane
+    c0 = _mm_sub_epi32(c0, _mm_cmpgt_epi32(v0, x));
+    c1 = _mm_sub_epi32(c1, _mm_cmpgt_epi32(v1, x));
+    c2 = _mm_sub_epi32(c2, _mm_cmpgt_epi32(v2, x));
+    c3 = _mm_sub_epi32(c3, _mm_cmpgt_epi32(v3, x));
+  };
+  for (int k = 0; k < past_count; ++k) count(_mm_set1_epi32(std::max(past[k], 1)));
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::int64_t off = kDy[i] * a.stride + kDx[i];
+    const __m128i r1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre + off) * 4));
+    const __m128i s1 = _mm_sub_epi32(_mm_srai_epi32(r1, 1), v_then);
+    const __m128i ok1 =
+        _mm_andnot_si128(_mm_cmpgt_epi32(s1, v_lookahead),
+                         _mm_and_si128(_mm_cmpgt_epi32(s1, v_zero), _mm_cmpeq_epi32(_mm_and_si128(r1, v_one), v_pol)));
+    // Where ok1 holds 0 < s <= L, so 2s − tol does not overflow (elsewhere its value is masked).
+    const __m128i tol = _mm_add_epi32(v_jitter, _mm_cvttps_epi32(_mm_mul_ps(v_precision, _mm_cvtepi32_ps(s1))));
+    const __m128i reach = _mm_sub_epi32(_mm_add_epi32(s1, s1), tol);
+    const __m128i ok = _mm_andnot_si128(_mm_cmpgt_epi32(reach, v_lookahead), ok1);
+    __m128i m = _mm_blendv_epi8(v_highest, s1, ok);
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0x4E));
+    m = _mm_min_epi32(m, _mm_shuffle_epi32(m, 0xB1));
+    count(m);
+  }
+  // count_m > m − 1 for some m.
+  const __m128i hit = _mm_or_si128(
+      _mm_or_si128(_mm_cmpgt_epi32(c0, _mm_setr_epi32(0, 1, 2, 3)), _mm_cmpgt_epi32(c1, _mm_setr_epi32(4, 5, 6, 7))),
+      _mm_or_si128(_mm_cmpgt_epi32(c2, _mm_setr_epi32(8, 9, 10, 11)),
+                   _mm_cmpgt_epi32(c3, _mm_setr_epi32(12, 13, 14, 15))));
+  return _mm_movemask_epi8(hit) != 0;
+}
+
+/// The same with AVX2: two directions per register (one per 128-bit half), the 16 thresholds in two registers.
+__attribute__((target("avx2"))) bool joint_may_pass_avx2(const LineArgs& a, std::int32_t lookahead_us,
+                                                         const std::int32_t* joint_us, const std::int32_t* past,
+                                                         int past_count) noexcept {
+  const __m256i v_then = _mm256_set1_epi32(a.now);
+  const __m256i v_pol = _mm256_set1_epi32(a.polarity);
+  const __m256i v_one = _mm256_set1_epi32(1);
+  const __m256i v_zero = _mm256_setzero_si256();
+  const __m256i v_lookahead = _mm256_set1_epi32(lookahead_us);
+  const __m256i v_jitter = _mm256_set1_epi32(a.jitter_us);
+  const __m256 v_precision = _mm256_set1_ps(a.precision);
+  const __m256i v_highest = _mm256_set1_epi32(kNoMatch);
+  const __m256i v_lo = _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(joint_us)), v_one);
+  const __m256i v_hi = _mm256_add_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(joint_us + 8)), v_one);
+  __m256i c_lo = v_zero;
+  __m256i c_hi = v_zero;
+  // c += (x <= V_m), x in every lane (a macro: a lambda would not inherit the target attribute).
+#define EVPIPE_COUNT_AVX2(x)                                     \
+  do {                                                           \
+    const __m256i x_ = (x);                                      \
+    c_lo = _mm256_sub_epi32(c_lo, _mm256_cmpgt_epi32(v_lo, x_)); \
+    c_hi = _mm256_sub_epi32(c_hi, _mm256_cmpgt_epi32(v_hi, x_)); \
+  } while (false)
+  for (int k = 0; k < past_count; ++k) EVPIPE_COUNT_AVX2(_mm256_set1_epi32(std::max(past[k], 1)));
+  for (std::size_t i = 0; i < 8; i += 2) {
+    const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
+    const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
+    const __m256i r1 =
+        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre + off1) * 4)),
+                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(a.ring + (a.centre + off0) * 4)));
+    const __m256i s1 = _mm256_sub_epi32(_mm256_srai_epi32(r1, 1), v_then);
+    const __m256i ok1 = _mm256_andnot_si256(
+        _mm256_cmpgt_epi32(s1, v_lookahead),
+        _mm256_and_si256(_mm256_cmpgt_epi32(s1, v_zero), _mm256_cmpeq_epi32(_mm256_and_si256(r1, v_one), v_pol)));
+    const __m256i tol =
+        _mm256_add_epi32(v_jitter, _mm256_cvttps_epi32(_mm256_mul_ps(v_precision, _mm256_cvtepi32_ps(s1))));
+    const __m256i reach = _mm256_sub_epi32(_mm256_add_epi32(s1, s1), tol);
+    const __m256i ok = _mm256_andnot_si256(_mm256_cmpgt_epi32(reach, v_lookahead), ok1);
+    __m256i m = _mm256_blendv_epi8(v_highest, s1, ok);
+    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));    // in every lane of each half
+    EVPIPE_COUNT_AVX2(_mm256_permute2x128_si256(m, m, 0x00));  // direction i
+    EVPIPE_COUNT_AVX2(_mm256_permute2x128_si256(m, m, 0x11));  // direction i + 1
+  }
+#undef EVPIPE_COUNT_AVX2
+  const __m256i hit = _mm256_or_si256(_mm256_cmpgt_epi32(c_lo, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)),
+                                      _mm256_cmpgt_epi32(c_hi, _mm256_setr_epi32(8, 9, 10, 11, 12, 13, 14, 15)));
+  return _mm256_movemask_epi8(hit) != 0;
+}
+
 #endif
 
 /// The edge-line kernel for this CPU, or the one EVPIPE_SIGNIFICANCE_KERNEL names (scalar, sse4, avx2; for tests
@@ -731,6 +836,42 @@ float Significance::joint_ratio(const Event& e, const std::int32_t* past_ages, i
   return ratio;
 }
 
+bool Significance::joint_may_pass(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept {
+  if (lookahead_us_ <= 0 || !options_.edge_line || !geometry_.contains(e.x, e.y)) return false;  // joint_ratio: 0
+  const auto centre = static_cast<std::int64_t>((e.y + kPad) * stride_ + (e.x + kPad));
+  const auto then = static_cast<std::int32_t>(e.t_us - base_us_);
+  const int polarity = e.polarity ? 1 : 0;
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+  if (kernel_ != kScalar) {
+    const LineArgs args{ring_.data(), stride_, centre, then, polarity, line_us_.data(), jitter_us_, precision_};
+    return kernel_ == kAvx2 ? joint_may_pass_avx2(args, lookahead_us_, joint_us_.data(), past_ages, past_count)
+                            : joint_may_pass_sse4(args, lookahead_us_, joint_us_.data(), past_ages, past_count);
+  }
+#endif
+  // The same count, one entry at a time (a superset of what future_lines examines on any input order).
+  std::array<int, 16> count{};
+  const auto add = [&](std::int32_t x) {
+    for (std::size_t m = 0; m < count.size(); ++m) count[m] += std::max(x, 1) <= joint_us_[m] ? 1 : 0;
+  };
+  for (int k = 0; k < past_count; ++k) add(past_ages[k]);
+  for (std::size_t i = 0; i < 8; ++i) {
+    const std::int64_t off = kDy[i] * stride_ + kDx[i];
+    const std::int32_t* r1 = ring_.data() + (centre + off) * kRing;
+    std::int32_t best = kAgeCap;
+    for (int a = 0; a < kRing; ++a) {
+      const std::int32_t s1 = (r1[a] >> 1) - then;
+      if (s1 <= 0 || s1 > lookahead_us_ || (r1[a] & 1) != polarity) continue;
+      const std::int32_t tol = jitter_us_ + static_cast<std::int32_t>(precision_ * static_cast<float>(s1));
+      if (2 * s1 - tol <= lookahead_us_) best = std::min(best, s1);
+    }
+    if (best != kAgeCap) add(best);
+  }
+  for (std::size_t m = 0; m < count.size(); ++m) {
+    if (count[m] >= static_cast<int>(m) + 1) return true;
+  }
+  return false;
+}
+
 namespace {
 
 /// Look-ahead driver: every event enters a FIFO (one slot, reused: a ring that only grows, to the events of one
@@ -739,7 +880,7 @@ namespace {
 class SignificanceFilter final : public Filter {
  public:
   SignificanceFilter(const SensorGeometry& geometry, const SignificanceOptions& options)
-      : impl_(geometry, options), lookahead_us_(options.lookahead_us) {}
+      : impl_(geometry, options), lookahead_us_(options.lookahead_us), exact_scores_(options.exact_scores) {}
 
   [[nodiscard]] std::string_view name() const noexcept override { return "significance"; }
   void push(EventSpan events, Decisions& out) override {
@@ -776,6 +917,7 @@ class SignificanceFilter final : public Filter {
   [[nodiscard]] std::vector<ReportItem> report() const override {
     auto r = impl_.report();
     r.push_back({"kept_lookahead", static_cast<double>(kept_joint_)});
+    if (!exact_scores_) r.push_back({"lookahead_bound_drops", static_cast<double>(bound_drops_)});
     return r;
   }
 
@@ -811,6 +953,11 @@ class SignificanceFilter final : public Filter {
       // The rings it reads were last touched up to L ago: start fetching those of the events decided next.
       if (next_ + kPrefetchAhead < size_) impl_.prefetch_block(at(next_ + kPrefetchAhead).event);
       if (x.state != kPending) continue;
+      if (!exact_scores_ && !impl_.joint_may_pass(x.event, x.past.data(), x.past_n)) {
+        x.state = kDrop;  // joint_ratio < 1 for certain: the same decision (the score stays the causal one)
+        ++bound_drops_;
+        continue;
+      }
       const float joint = impl_.joint_ratio(x.event, x.past.data(), x.past_n);
       x.score = std::max(x.score, joint);
       x.state = joint >= 1.0F ? kKeep : kDrop;
@@ -831,11 +978,13 @@ class SignificanceFilter final : public Filter {
 
   Significance impl_;
   std::int64_t lookahead_us_;
+  bool exact_scores_;
   std::vector<Entry> fifo_;
   std::size_t head_ = 0;
   std::size_t size_ = 0;
   std::size_t next_ = 0;  // first entry not examined by decide_before
   std::uint64_t kept_joint_ = 0;
+  std::uint64_t bound_drops_ = 0;  // pending events the bound dropped (exact_scores = false)
 };
 
 }  // namespace
@@ -885,6 +1034,9 @@ FilterSpec significance_spec() {
             o.lookahead_us = p.integer("lookahead_us", o.lookahead_us,
                                        "look-ahead for the joint past + future edge-line test (us; 0 = causal)");
             p.require_range("lookahead_us", static_cast<double>(o.lookahead_us), 0.0, 1e6);
+            o.exact_scores = p.boolean("exact_scores", o.exact_scores,
+                                       "exact score for every event (false: the look-ahead drops events its bound "
+                                       "rejects without the full walk, keeping their causal score; same decisions)");
             return make_significance(g, o);
           }};
 }

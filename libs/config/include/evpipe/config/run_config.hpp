@@ -111,7 +111,9 @@ struct DenoiseConfig {
   ///  * adaptive: true, adaptive_max_threshold: 5 — the density threshold follows the measured noise rate but
   ///    never rises above the paper's 5. A `density_threshold` of the user's turns both off (a fixed threshold
   ///    stays fixed); otherwise each is added unless set (`adaptive: false` needs no cap).
-  /// Keys are looked for bare and as `curvature.KEY`; what is added is prefixed in a chain.
+  /// and for significance (docs/algorithms.md, "Significance filter"):
+  ///  * exact_scores: false — the pipeline reads decisions, not scores (the same decisions, faster at high noise).
+  /// Keys are looked for bare and as `curvature.KEY` (`significance.KEY`); what is added is prefixed in a chain.
   [[nodiscard]] std::vector<std::pair<std::string, std::string>> pipeline_params() const;
 };
 

@@ -63,6 +63,11 @@ struct SignificanceOptions {
   /// p + 2d at t + 2s), joined with its past ones in one test (0 = causal: decided on arrival). 20 ms: the
   /// pipeline's event -> LCM budget (35 ms p99) minus what the stages after the denoiser add at p99 (~13 ms).
   std::int64_t lookahead_us = 20'000;
+  /// true: every event's score is its exact margin. false: an event the look-ahead rejects because even its
+  /// future candidates' most favourable ages cannot reach the joint thresholds (Significance::joint_may_pass) is
+  /// dropped without the full future walk and keeps its causal score (the same decisions, cheaper at high noise;
+  /// the pipeline runs it so, evdenoise's ROC needs the exact scores).
+  bool exact_scores = true;
 };
 
 class Significance {
@@ -98,6 +103,12 @@ class Significance {
   [[nodiscard]] int past_line_count() const noexcept { return past_n_; }
   [[nodiscard]] const std::array<std::int32_t, 8>& past_line_ages_us() const noexcept { return past_ages_; }
   [[nodiscard]] float joint_ratio(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
+  /// False only when joint_ratio(e, past_ages, past_count) < 1 for certain, from the 3×3 block alone (the rings of
+  /// p + d; p + 2d's are not read): a future half-line's matched s is one of p + d's entries of the event's polarity
+  /// with 0 < s <= L and 2s − tol(s) <= L (its p + 2d partner is within L), so each direction's smallest such s (its
+  /// candidate) is <= its match, and #{merged ages <= V_m} <= #{past ages <= V_m} + #{candidates <= V_m}. The joint
+  /// test passes iff that count reaches m for some m; when the bound's does not, it cannot.
+  [[nodiscard]] bool joint_may_pass(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
   /// Starts fetching the rings joint_ratio(e, ...) reads first.
   void prefetch_block(const Event& e) const noexcept;
 
