@@ -315,8 +315,11 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
                       : 0;
   // alpha is split over the tests that run, at least in halves (the causal edge-line test keeps alpha / 2 whether
   // or not the optional recency and look-ahead tests run; with all three, alpha / 3 each).
-  const int tests = 1 + (options_.recency_max_us > 0 ? 1 : 0) + (lookahead_us_ > 0 ? 1 : 0);
+  const int tests = 1 + (options_.recency_max_us > 0 ? 1 : 0) + (lookahead_us_ > 0 ? 1 : 0) +
+                    (options_.edge_line && options_.surface ? 1 : 0);
   const double share = options_.alpha / std::max(2, tests);
+  surface_alpha_ = options_.edge_line && options_.surface ? share : 0.0;
+  log_surface_alpha_ = surface_alpha_ > 0.0 ? std::log(surface_alpha_) : 0.0;
   // Both causal tests' per-m quantiles depend on alpha only: P(Binomial(8, q_m) >= m) = share / 8.
   for (int m = 1; m <= kNeighbours; ++m) {
     quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, share / kNeighbours);
@@ -336,10 +339,13 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
 void Significance::allocate() {
   // The filter's only per-pixel allocation (kRing · 4 bytes per padded pixel).
   ring_.resize(static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad) * kRing));
+  kept_.resize(options_.edge_line && options_.surface ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad))
+                                                      : 0);
 }
 
 void Significance::reset() noexcept {
   std::fill(ring_.begin(), ring_.end(), kNever);
+  std::fill(kept_.begin(), kept_.end(), kNever);
   started_ = false;
   base_us_ = 0;
   last_t_us_ = 0;
@@ -353,6 +359,7 @@ void Significance::reset() noexcept {
   time_acc_s_ = 0.0;
   kept_recency_ = 0;
   kept_line_ = 0;
+  kept_surface_ = 0;
   score_ = 0.0F;
   set_rate(options_.initial_rate_hz);
 }
@@ -474,10 +481,12 @@ double Significance::rate_from_zero_support(double r0, double r1, double all, do
 
 void Significance::rebase(std::int64_t t_us) noexcept {
   const std::int64_t shift = (t_us - base_us_) - kKeepOnRebase;
-  for (auto& v : ring_) {
-    if (v == kNever) continue;
-    const std::int64_t time = static_cast<std::int64_t>(v >> 1) - shift;
-    v = time < kNeverTime / 2 ? kNever : static_cast<std::int32_t>(time * 2 + (v & 1));
+  for (auto* values : {&ring_, &kept_}) {
+    for (auto& v : *values) {
+      if (v == kNever) continue;
+      const std::int64_t time = static_cast<std::int64_t>(v >> 1) - shift;
+      v = time < kNeverTime / 2 ? kNever : static_cast<std::int32_t>(time * 2 + (v & 1));
+    }
   }
   base_us_ += shift;
 }
@@ -636,6 +645,13 @@ bool Significance::accept(const Event& e) noexcept {
     keep = line >= 1.0F;
     kept_line_ += keep ? 1 : 0;
   }
+  if (!keep && lookahead_us_ == 0 && !kept_.empty()) {  // causal: the edge-surface test now (else at t + L)
+    const float surface = surface_ratio_at(centre, now, polarity, 0);
+    score = std::max(score, surface);
+    keep = surface >= 1.0F;
+    kept_surface_ += keep ? 1 : 0;
+  }
+  if (keep && !kept_.empty()) kept_[centre] = std::max(kept_[centre], now * 2 + polarity);
   score_ = score;
   // Stamp the event into its pixel's ring (newest first), kept or not.
   std::int32_t* own = ring_.data() + centre * kRing;
@@ -731,6 +747,153 @@ float Significance::joint_ratio(const Event& e, const std::int32_t* past_ages, i
   return ratio;
 }
 
+// ---- Edge-surface test (slow edges; docs/algorithms.md, "Edge-surface test") ----
+
+namespace {
+
+/// log P(Poisson(mu) >= k), k >= 1.
+double log_poisson_tail(double mu, int k) noexcept {
+  if (mu <= 0.0) return -std::numeric_limits<double>::infinity();
+  // P = e^{−mu}·mu^k / k!·(1 + mu/(k+1) + mu²/((k+1)(k+2)) + ...).
+  double sum = 1.0;
+  double term = 1.0;
+  for (int i = k + 1; i < k + 200; ++i) {
+    term *= mu / i;
+    sum += term;
+    if (term < 1e-12 * sum) break;
+  }
+  return -mu + k * std::log(mu) - std::lgamma(k + 1.0) + std::log(sum);
+}
+
+/// Least-squares plane s = a + gx·dx + gy·dy through n points; a ridge on the gradient when they are collinear (then
+/// the gradient across their line is 0). Returns false when n < 3.
+bool fit_plane(const std::int8_t* dx, const std::int8_t* dy, const double* s, int n, double& a, double& gx,
+               double& gy) noexcept {
+  if (n < 3) return false;
+  double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, ss = 0, sxs = 0, sys = 0;
+  for (int i = 0; i < n; ++i) {
+    const double x = dx[i];
+    const double y = dy[i];
+    sx += x, sy += y, sxx += x * x, sxy += x * y, syy += y * y, ss += s[i], sxs += x * s[i], sys += y * s[i];
+  }
+  // Centred: gradient from the 2×2 system, then a.
+  const double cn = n;
+  const double cxx = sxx - sx * sx / cn;
+  const double cxy = sxy - sx * sy / cn;
+  const double cyy = syy - sy * sy / cn;
+  const double cxs = sxs - sx * ss / cn;
+  const double cys = sys - sy * ss / cn;
+  double det = cxx * cyy - cxy * cxy;
+  double rxx = cxx;
+  double ryy = cyy;
+  if (det < 1e-6 * (cxx + cyy) * (cxx + cyy)) {  // collinear: minimum-norm gradient
+    const double ridge = 1e-6 * (cxx + cyy) + 1e-12;
+    rxx += ridge;
+    ryy += ridge;
+    det = rxx * ryy - cxy * cxy;
+  }
+  if (!(det > 0.0)) return false;
+  gx = (ryy * cxs - cxy * cys) / det;
+  gy = (rxx * cys - cxy * cxs) / det;
+  a = (ss - gx * sx - gy * sy) / cn;
+  return true;
+}
+
+}  // namespace
+
+void Significance::mark_kept(const Event& e) noexcept {
+  if (kept_.empty() || !geometry_.contains(e.x, e.y)) return;
+  const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
+  const auto v = static_cast<std::int32_t>((e.t_us - base_us_) * 2 + (e.polarity ? 1 : 0));
+  kept_[centre] = std::max(kept_[centre], v);
+}
+
+float Significance::surface_ratio(const Event& e, std::int32_t horizon_us) const noexcept {
+  if (kept_.empty() || !geometry_.contains(e.x, e.y)) return 0.0F;
+  const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
+  return surface_ratio_at(centre, static_cast<std::int32_t>(e.t_us - base_us_), e.polarity ? 1 : 0, horizon_us);
+}
+
+float Significance::surface_ratio_at(std::size_t centre, std::int32_t then, int polarity,
+                                     std::int32_t horizon_us) const noexcept {
+  // The motion prior: the kept events of the 5×5 block (own pixel excluded) of the event's polarity within
+  // [t − T, t + horizon]; their plane s(q) = a + g·q (s relative to t) gives the local normal flow.
+  constexpr int kBlock = 24;
+  std::array<std::int8_t, kBlock> px{};
+  std::array<std::int8_t, kBlock> py{};
+  std::array<double, kBlock> ps{};
+  int n = 0;
+  const auto c = static_cast<std::int64_t>(centre);
+  for (int dy = -2; dy <= 2; ++dy) {
+    for (int dx = -2; dx <= 2; ++dx) {
+      const std::int32_t v = kept_[static_cast<std::size_t>(c + dy * stride_ + dx)];
+      if (v == kNever || (v & 1) != polarity || (dx == 0 && dy == 0)) continue;
+      const std::int32_t s = (v >> 1) - then;
+      if (s < -window_us_ || s > horizon_us) continue;
+      px[static_cast<std::size_t>(n)] = static_cast<std::int8_t>(dx);
+      py[static_cast<std::size_t>(n)] = static_cast<std::int8_t>(dy);
+      ps[static_cast<std::size_t>(n)] = s * 1e-6;
+      ++n;
+    }
+  }
+  double a = 0.0;
+  double gx = 0.0;
+  double gy = 0.0;
+  if (!fit_plane(px.data(), py.data(), ps.data(), n, a, gx, gy)) return 0.0F;
+  // One pass without the points off the plane by more than the edge tolerance δ(|g·q|) (a kept noise event, another
+  // crossing), if three remain.
+  const double jitter_s = jitter_us_ * 1e-6;
+  const double eps = options_.edge_precision_px;
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    const double tau = gx * px[iu] + gy * py[iu];
+    if (std::abs(ps[iu] - a - tau) > jitter_s + eps * std::abs(tau)) continue;
+    px[static_cast<std::size_t>(m)] = px[iu];
+    py[static_cast<std::size_t>(m)] = py[iu];
+    ps[static_cast<std::size_t>(m)] = ps[iu];
+    ++m;
+  }
+  if (m < n && m >= 3) {
+    double a2 = 0.0;
+    double gx2 = 0.0;
+    double gy2 = 0.0;
+    if (fit_plane(px.data(), py.data(), ps.data(), m, a2, gx2, gy2)) gx = gx2, gy = gy2;
+  }
+  // Slots: if the event lies on that surface, p + q fires at t + τ_q, τ_q = g·q, within δ(|τ_q|) = δ₀ + ε|τ_q|,
+  // with its polarity. Under BA a slot holds such an event by chance with probability <= (λ/2)·w_q (w_q its
+  // window inside [t − T, t + horizon]); the count K of filled slots is then bounded by Poisson(Σ (λ/2)·w_q).
+  const double T = window_us_ * 1e-6;
+  const double horizon = horizon_us * 1e-6;
+  double mu = 0.0;
+  int k = 0;
+  for (int dy = -2; dy <= 2; ++dy) {
+    for (int dx = -2; dx <= 2; ++dx) {
+      if (dx == 0 && dy == 0) continue;
+      const double tau = gx * dx + gy * dy;
+      const double tol = jitter_s + eps * std::abs(tau);
+      const double lo = std::max(tau - tol, -T);
+      const double hi = std::min(tau + tol, horizon);
+      if (!(hi > lo)) continue;
+      mu += 0.5 * rate_hz_ * (hi - lo);
+      const auto lo_us = static_cast<std::int32_t>(std::floor(lo * 1e6));
+      const auto hi_us = static_cast<std::int32_t>(std::ceil(hi * 1e6));
+      const std::int32_t* r = ring_.data() + (c + dy * stride_ + dx) * kRing;
+      bool filled = false;
+      for (int j = 0; j < kRing; ++j) {
+        const std::int32_t v = r[j];
+        const std::int32_t s = (v >> 1) - then;
+        filled |= v != kNever && (v & 1) == polarity && s >= lo_us && s <= hi_us;
+      }
+      k += filled ? 1 : 0;
+    }
+  }
+  // The Poisson bound holds for k >= mu + 1 (Hoeffding; Anderson & Samuels): below it the test does not keep.
+  if (k < 2 || k < mu + 1.0) return 0.0F;
+  const double ratio = log_poisson_tail(mu, k) / log_surface_alpha_;
+  return static_cast<float>(std::min(ratio, static_cast<double>(std::numeric_limits<float>::max())));
+}
+
 namespace {
 
 /// Look-ahead driver: every event enters a FIFO (one slot, reused: a ring that only grows, to the events of one
@@ -815,7 +978,17 @@ class SignificanceFilter final : public Filter {
       x.score = std::max(x.score, joint);
       x.state = joint >= 1.0F ? kKeep : kDrop;
       kept_joint_ += joint >= 1.0F ? 1 : 0;
+      if (x.state == kDrop) decide_surface(x);
+      if (x.state == kKeep) impl_.mark_kept(x.event);
     }
+  }
+  /// The edge-surface test of a waiting event the joint test rejected (the rings and kept events up to t + L).
+  void decide_surface(Entry& x) noexcept {
+    const float surface = impl_.surface_ratio(x.event, static_cast<std::int32_t>(lookahead_us_));
+    x.score = std::max(x.score, surface);
+    if (surface < 1.0F) return;
+    x.state = kKeep;
+    impl_.count_kept_surface();
   }
   void release(Decisions& out) {
     while (size_ > 0) {
@@ -849,6 +1022,7 @@ std::vector<ReportItem> Significance::report() const {
   return {{"noise_rate_hz", rate_hz_},
           {"kept_recency", static_cast<double>(kept_recency_)},
           {"kept_edge_line", static_cast<double>(kept_line_)},
+          {"kept_surface", static_cast<double>(kept_surface_)},
           {"line_window_us", static_cast<double>(line_us_[7])}};
 }
 
@@ -882,6 +1056,8 @@ FilterSpec significance_spec() {
                                          "longest neighbour age the recency test uses (us; 0 = no recency test)");
             p.require_range("recency_max_us", static_cast<double>(o.recency_max_us), 0.0, 1e9);
             o.edge_line = p.boolean("edge_line", o.edge_line, "edge-line test for slow edges (false: recency only)");
+            o.surface = p.boolean("surface", o.surface,
+                                  "edge-surface test against the plane of nearby kept events (slow edges)");
             o.lookahead_us = p.integer("lookahead_us", o.lookahead_us,
                                        "look-ahead for the joint past + future edge-line test (us; 0 = causal)");
             p.require_range("lookahead_us", static_cast<double>(o.lookahead_us), 0.0, 1e6);

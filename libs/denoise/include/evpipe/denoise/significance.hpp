@@ -63,6 +63,10 @@ struct SignificanceOptions {
   /// p + 2d at t + 2s), joined with its past ones in one test (0 = causal: decided on arrival). 20 ms: the
   /// pipeline's event -> LCM budget (35 ms p99) minus what the stages after the denoiser add at p99 (~13 ms).
   std::int64_t lookahead_us = 20'000;
+  /// Edge-surface test (slow edges): an event the line tests reject is tested against the plane fitted to the
+  /// already-kept events of its 5×5 block (the local normal flow), counting the block's pixels whose events lie on
+  /// that plane through the event, against the count BA alone gives (docs/algorithms.md, "Edge-surface test").
+  bool surface = true;
 };
 
 class Significance {
@@ -101,6 +105,14 @@ class Significance {
   /// Starts fetching the rings joint_ratio(e, ...) reads first.
   void prefetch_block(const Event& e) const noexcept;
 
+  // Edge-surface test (options.surface): the newest kept event per pixel (mark_kept; accept() marks what it keeps,
+  // the look-ahead driver what it keeps later) gives the motion prior. surface_ratio(e, horizon_us) is
+  // log P / log alpha_s (>= 1: keep), P the chance of the event's on-plane support under BA, with slots up to
+  // t + horizon_us (0 when causal, L at the look-ahead's decision). 0 when the block has too few kept events.
+  [[nodiscard]] float surface_ratio(const Event& e, std::int32_t horizon_us) const noexcept;
+  void mark_kept(const Event& e) noexcept;
+  void count_kept_surface() noexcept { ++kept_surface_; }
+
  private:
   void allocate();
   void rebase(std::int64_t t_us) noexcept;
@@ -113,11 +125,16 @@ class Significance {
   int future_lines(std::size_t centre, std::int32_t then, int polarity,
                    std::array<std::int32_t, 8>& ages) const noexcept;
   void set_joint_thresholds() noexcept;
+  [[nodiscard]] float surface_ratio_at(std::size_t centre, std::int32_t then, int polarity,
+                                       std::int32_t horizon_us) const noexcept;
 
   SensorGeometry geometry_;
   SignificanceOptions options_;
   std::int64_t stride_;
   std::vector<std::int32_t> ring_;  // kRing per padded pixel, newest first: (t − base)·2 + polarity
+  std::vector<std::int32_t> kept_;  // per padded pixel, the newest kept event: (t − base)·2 + polarity
+  double surface_alpha_ = 0.0;      // the edge-surface test's share of alpha
+  double log_surface_alpha_ = 0.0;
   std::int64_t base_us_ = 0;
   bool started_ = false;
   std::int64_t last_t_us_ = 0;  // time of the previous event
@@ -150,6 +167,7 @@ class Significance {
   double time_acc_s_ = 0.0;
   std::uint64_t kept_recency_ = 0;
   std::uint64_t kept_line_ = 0;
+  std::uint64_t kept_surface_ = 0;
   float score_ = 0.0F;
 };
 
