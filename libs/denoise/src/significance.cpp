@@ -314,20 +314,23 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
                       ? static_cast<std::int32_t>(std::clamp<std::int64_t>(options_.lookahead_us, 0, 10'000'000))
                       : 0;
   // alpha is split over the tests that run, at least in halves (the causal edge-line test keeps alpha / 2 whether
-  // or not the optional recency and look-ahead tests run; with all three, alpha / 3 each).
-  const int tests = 1 + (options_.recency_max_us > 0 ? 1 : 0) + (lookahead_us_ > 0 ? 1 : 0) +
-                    (options_.edge_line && options_.surface ? 1 : 0);
+  // or not the optional recency and look-ahead tests run; with all three, alpha / 3 each). The edge-surface test
+  // shares the look-ahead test's part (half each when both run; the whole part in the causal filter), so the
+  // edge-line test's thresholds do not depend on it.
+  const bool surface = options_.edge_line && options_.surface;
+  const int tests = 1 + (options_.recency_max_us > 0 ? 1 : 0) + (lookahead_us_ > 0 || surface ? 1 : 0);
   const double share = options_.alpha / std::max(2, tests);
-  surface_alpha_ = options_.edge_line && options_.surface ? share : 0.0;
+  const double joint_share = lookahead_us_ > 0 ? (surface ? share / 2 : share) : 0.0;
+  surface_alpha_ = surface ? (lookahead_us_ > 0 ? share / 2 : share) : 0.0;
   log_surface_alpha_ = surface_alpha_ > 0.0 ? std::log(surface_alpha_) : 0.0;
   // Both causal tests' per-m quantiles depend on alpha only: P(Binomial(8, q_m) >= m) = share / 8.
   for (int m = 1; m <= kNeighbours; ++m) {
     quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, share / kNeighbours);
   }
-  // The joint test's 16 half-lines (8 past, 8 future): P(Binomial(16, q_m) >= m) = share / 16.
+  // The joint test's 16 half-lines (8 past, 8 future): P(Binomial(16, q_m) >= m) = joint_share / 16.
   for (int m = 1; m <= 2 * kNeighbours; ++m) {
     joint_quantile_[static_cast<std::size_t>(m - 1)] =
-        lookahead_us_ > 0 ? binomial_quantile(2 * kNeighbours, m, share / (2 * kNeighbours)) : 0.0;
+        lookahead_us_ > 0 ? binomial_quantile(2 * kNeighbours, m, joint_share / (2 * kNeighbours)) : 0.0;
   }
   static_assert(kRing == 4, "the vector kernels hold one ring in 4 lanes");
   kernel_ = pick_kernel(kScalar, kSse4, kAvx2);
