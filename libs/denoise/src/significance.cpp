@@ -342,8 +342,8 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
 void Significance::allocate() {
   // The filter's only per-pixel allocation (kRing · 4 bytes per padded pixel).
   ring_.resize(static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad) * kRing));
-  kept_.resize(options_.edge_line && options_.surface ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad))
-                                                      : 0);
+  kept_.resize(
+      options_.edge_line && options_.surface ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad)) : 0);
 }
 
 void Significance::reset() noexcept {
