@@ -165,6 +165,7 @@ int main(int argc, char** argv) {
       {"hotpixel", {}},
       {"significance", {}},
       {"significance", {{"lookahead_us", "0"}}},  // the causal option
+      {"significance", {{"surface", "false"}}},   // without the edge-surface test (its cost)
   };
   for (const Dataset& d : datasets) {
     std::fprintf(stderr, "bench_denoise: %s: %zu events, %.2f s\n", d.name.c_str(), d.events.size(),

@@ -131,10 +131,11 @@ class Significance {
   SensorGeometry geometry_;
   SignificanceOptions options_;
   std::int64_t stride_;
-  std::vector<std::int32_t> ring_;  // kRing per padded pixel, newest first: (t − base)·2 + polarity
-  std::vector<std::int32_t> kept_;  // per padded pixel, the newest kept event: (t − base)·2 + polarity
-  double surface_alpha_ = 0.0;      // the edge-surface test's share of alpha
-  double log_surface_alpha_ = 0.0;
+  std::vector<std::int32_t> ring_;             // kRing per padded pixel, newest first: (t − base)·2 + polarity
+  std::vector<std::int32_t> kept_;             // per padded pixel, the newest kept event: (t − base)·2 + polarity
+  double surface_alpha_ = 0.0;                 // the edge-surface test's share of alpha
+  std::array<double, 25> surface_mu_{};        // K -> largest Poisson mean with P(>= K) <= surface_alpha_ (0: never)
+  std::array<double, 25> surface_width_us_{};  // K -> W_K = surface_mu_[K] / (λ/2), µs (set_rate)
   std::int64_t base_us_ = 0;
   bool started_ = false;
   std::int64_t last_t_us_ = 0;  // time of the previous event
