@@ -24,6 +24,12 @@
 //    0 < s, s2 <= L) gives 8 more independent half-lines; the 16 smallest matched ages (past and future) sorted,
 //    w_(1) <= ..., the event passes when w_(m) <= V_m, P(Binomial(16, p(V_m)) >= m) = alpha / 2 / 16. An edge
 //    with one line behind it (an edge entering the view, a corner) and one ahead of it passes.
+//  * edge-surface test (surface, default on; slow edges): the plane s(q) = a + g·q fitted to the kept events of the
+//    event's 5×5 block within [t − T, t + L] (the newest kept event per pixel; >= 3 of the event's polarity) is the
+//    local motion; the block's pixels p + q whose rings hold an event at t + g·q (within jitter + precision·|g·q|)
+//    are counted, K, against Poisson((lambda/2)·sum of the slot widths): kept when P(>= K) <= alpha_s (alpha_s:
+//    half the look-ahead test's part, all of it when causal). Runs on an event the other tests rejected, with a
+//    matched past half-line and the plane's time at p near t.
 // lambda: from the events whose 8 neighbours are all older than T0 = 10 ms (rate r0 per pixel·s, which noise
 // alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us; of its two roots
 // the larger (above 12.5 Hz/px) only when the whole event rate reaches it and the share at T1 = 1 ms points to it.
