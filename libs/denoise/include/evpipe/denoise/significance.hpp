@@ -2,12 +2,15 @@
 // Significance filter: keeps an event when its support is improbable under background activity (BA) alone, at a
 // set false-alarm rate alpha, against the BA rate estimated online from the stream (docs/algorithms.md,
 // "Significance filter"). O(1) per event. Decides on arrival what the causal tests keep; with lookahead_us = L > 0
-// (default 20 ms) an event they reject is decided at t + L by the joint test (make_significance; decision latency L).
+// (default 20 ms) an event they reject is decided at t + L by the joint test and then the edge-surface test
+// (make_significance; decision latency L).
 //
-// Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Up to three
-// tests, each at alpha / max(2, tests) (so that a noise event passes with probability <= alpha); the edge-line test
-// decides by default, the joint look-ahead test runs when lookahead_us > 0, the recency test is optional
-// (recency_max_us > 0):
+// Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Up to four
+// tests whose false-alarm shares add up to alpha (so that a noise event passes with probability <= alpha): alpha /
+// max(2, tests) each for the edge-line test, the optional recency test and the pair (joint look-ahead test,
+// edge-surface test), which split theirs in halves when both run; the edge-line test decides by default, the joint
+// look-ahead test runs when lookahead_us > 0, the edge-surface test when surface (default), the recency test is
+// optional (recency_max_us > 0):
 //  * recency (count) test: the ages a_q of the newest event of the 8 neighbours q (own pixel excluded: hot pixels
 //    and refractory bursts do not support themselves; each neighbour counts once, so a hot neighbour adds at most
 //    1) are i.i.d. Exp(lambda) under noise. Sorted a_(1) <= ... <= a_(8); the event passes when a_(k) <= A_k for
