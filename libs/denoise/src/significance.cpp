@@ -337,7 +337,7 @@ double poisson_mean_quantile(int k, double target) noexcept {
 /// gradient when the points are collinear (then the gradient across their line is 0). False when n < 3.
 struct PlaneSums {
   std::int64_t n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, ss = 0, sxs = 0, sys = 0;
-  void add(int x, int y, std::int64_t s, int sign) noexcept {
+  void add(std::int64_t x, std::int64_t y, std::int64_t s, std::int64_t sign) noexcept {
     n += sign, sx += sign * x, sy += sign * y, sxx += sign * x * x, sxy += sign * x * y, syy += sign * y * y;
     ss += sign * s, sxs += sign * x * s, sys += sign * y * s;
   }
