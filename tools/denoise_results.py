@@ -44,9 +44,12 @@ class FilterRun:
 FILTERS = [
     FilterRun("significance", "significance", (), "evpipe's pipeline default: significance test against the "
               "estimated BA rate (edge-line test, false-alarm rate 5e-4), 20 ms look-ahead for the events the causal "
-              "test rejects (joint past + future edge lines)"),
+              "test rejects (joint past + future edge lines), then the edge-surface test (slot count on the plane of "
+              "nearby kept events)"),
     FilterRun("significance, causal", "significance", ("lookahead_us=0",), "the same without look-ahead (decided on "
               "arrival)"),
+    FilterRun("significance, no surface", "significance", ("surface=false",), "the default without the edge-surface "
+              "test (its cause and effect)"),
     FilterRun("curvature", "curvature", (), "paper parameters, stream mode (full ball, look-ahead)"),
     FilterRun("curvature, frames", "curvature", ("mode=frames",), "independent 30 ms frames, as the paper evaluates"),
     FilterRun("curvature, causal", "curvature", ("mode=causal",), "past half of the ball only, no look-ahead"),

@@ -166,6 +166,7 @@ int main(int argc, char** argv) {
       {"significance", {}},
       {"significance", {{"exact_scores", "false"}}},  // as the pipeline runs it (same decisions)
       {"significance", {{"lookahead_us", "0"}}},      // the causal option
+      {"significance", {{"surface", "false"}}},       // without the edge-surface test (its cost)
   };
   for (const Dataset& d : datasets) {
     std::fprintf(stderr, "bench_denoise: %s: %zu events, %.2f s\n", d.name.c_str(), d.events.size(),

@@ -408,6 +408,74 @@ std::uint8_t pick_kernel(std::uint8_t scalar, std::uint8_t sse4, std::uint8_t av
   return best;
 }
 
+// The edge-surface test's statistics (Significance::surface_ratio_at).
+
+/// log P(Poisson(mu) >= k), k >= 1.
+double log_poisson_tail(double mu, int k) noexcept {
+  if (mu <= 0.0) return -std::numeric_limits<double>::infinity();
+  // P = e^{−mu}·mu^k / k!·(1 + mu/(k+1) + mu²/((k+1)(k+2)) + ...).
+  double sum = 1.0;
+  double term = 1.0;
+  for (int i = k + 1; i < k + 400; ++i) {
+    term *= mu / i;
+    sum += term;
+    if (term < 1e-12 * sum) break;
+  }
+  return -mu + k * std::log(mu) - std::lgamma(k + 1.0) + std::log(sum);
+}
+
+/// Largest mu with P(Poisson(mu) >= k) <= target and mu <= k − 1 (where the Poisson bound of the slot count holds).
+double poisson_mean_quantile(int k, double target) noexcept {
+  if (k < 2 || !(target > 0.0)) return 0.0;
+  const double log_target = std::log(target);
+  double lo = 0.0;
+  double hi = k - 1.0;
+  if (log_poisson_tail(hi, k) <= log_target) return hi;
+  for (int it = 0; it < 80; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (log_poisson_tail(mid, k) <= log_target ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+/// Least-squares plane s = a + gx·dx + gy·dy from the sums of n points (dx, dy integers, s in µs); a ridge on the
+/// gradient when the points are collinear (then the gradient across their line is 0). False when n < 3.
+struct PlaneSums {
+  std::int64_t n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, ss = 0, sxs = 0, sys = 0;
+  void add(std::int64_t x, std::int64_t y, std::int64_t s, std::int64_t sign) noexcept {
+    n += sign, sx += sign * x, sy += sign * y, sxx += sign * x * x, sxy += sign * x * y, syy += sign * y * y;
+    ss += sign * s, sxs += sign * x * s, sys += sign * y * s;
+  }
+};
+
+bool fit_plane(const PlaneSums& p, double& a, double& gx, double& gy) noexcept {
+  if (p.n < 3) return false;
+  const auto cn = static_cast<double>(p.n);
+  const auto sx = static_cast<double>(p.sx);
+  const auto sy = static_cast<double>(p.sy);
+  const auto ss = static_cast<double>(p.ss);
+  // Centred: the gradient from the 2×2 system, then a.
+  const double cxx = static_cast<double>(p.sxx) - sx * sx / cn;
+  const double cxy = static_cast<double>(p.sxy) - sx * sy / cn;
+  const double cyy = static_cast<double>(p.syy) - sy * sy / cn;
+  const double cxs = static_cast<double>(p.sxs) - sx * ss / cn;
+  const double cys = static_cast<double>(p.sys) - sy * ss / cn;
+  double rxx = cxx;
+  double ryy = cyy;
+  double det = cxx * cyy - cxy * cxy;
+  if (det < 1e-6 * (cxx + cyy) * (cxx + cyy)) {  // collinear: minimum-norm gradient
+    const double ridge = 1e-6 * (cxx + cyy) + 1e-12;
+    rxx += ridge;
+    ryy += ridge;
+    det = rxx * ryy - cxy * cxy;
+  }
+  if (!(det > 0.0)) return false;
+  gx = (ryy * cxs - cxy * cys) / det;
+  gy = (rxx * cys - cxy * cxs) / det;
+  a = (ss - gx * sx - gy * sy) / cn;
+  return true;
+}
+
 }  // namespace
 
 Significance::Significance(const SensorGeometry& geometry, SignificanceOptions options)
@@ -419,17 +487,25 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
                       ? static_cast<std::int32_t>(std::clamp<std::int64_t>(options_.lookahead_us, 0, 10'000'000))
                       : 0;
   // alpha is split over the tests that run, at least in halves (the causal edge-line test keeps alpha / 2 whether
-  // or not the optional recency and look-ahead tests run; with all three, alpha / 3 each).
-  const int tests = 1 + (options_.recency_max_us > 0 ? 1 : 0) + (lookahead_us_ > 0 ? 1 : 0);
+  // or not the optional recency and look-ahead tests run; with all three, alpha / 3 each). The edge-surface test
+  // shares the look-ahead test's part (half each when both run; the whole part in the causal filter), so the
+  // edge-line test's thresholds do not depend on it.
+  const bool surface = options_.edge_line && options_.surface;
+  const int tests = 1 + (options_.recency_max_us > 0 ? 1 : 0) + (lookahead_us_ > 0 || surface ? 1 : 0);
   const double share = options_.alpha / std::max(2, tests);
+  const double joint_share = lookahead_us_ > 0 ? (surface ? share / 2 : share) : 0.0;
+  surface_alpha_ = surface ? (lookahead_us_ > 0 ? share / 2 : share) : 0.0;
+  for (std::size_t k = 0; k < surface_mu_.size(); ++k) {
+    surface_mu_[k] = poisson_mean_quantile(static_cast<int>(k), surface_alpha_);
+  }
   // Both causal tests' per-m quantiles depend on alpha only: P(Binomial(8, q_m) >= m) = share / 8.
   for (int m = 1; m <= kNeighbours; ++m) {
     quantile_[static_cast<std::size_t>(m - 1)] = binomial_quantile(kNeighbours, m, share / kNeighbours);
   }
-  // The joint test's 16 half-lines (8 past, 8 future): P(Binomial(16, q_m) >= m) = share / 16.
+  // The joint test's 16 half-lines (8 past, 8 future): P(Binomial(16, q_m) >= m) = joint_share / 16.
   for (int m = 1; m <= 2 * kNeighbours; ++m) {
     joint_quantile_[static_cast<std::size_t>(m - 1)] =
-        lookahead_us_ > 0 ? binomial_quantile(2 * kNeighbours, m, share / (2 * kNeighbours)) : 0.0;
+        lookahead_us_ > 0 ? binomial_quantile(2 * kNeighbours, m, joint_share / (2 * kNeighbours)) : 0.0;
   }
   static_assert(kRing == 4, "the vector kernels hold one ring in 4 lanes");
   kernel_ = pick_kernel(kScalar, kSse4, kAvx2);
@@ -441,10 +517,13 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
 void Significance::allocate() {
   // The filter's only per-pixel allocation (kRing · 4 bytes per padded pixel).
   ring_.resize(static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad) * kRing));
+  kept_.resize(
+      options_.edge_line && options_.surface ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad)) : 0);
 }
 
 void Significance::reset() noexcept {
   std::fill(ring_.begin(), ring_.end(), kNever);
+  std::fill(kept_.begin(), kept_.end(), kNever);
   started_ = false;
   base_us_ = 0;
   last_t_us_ = 0;
@@ -458,6 +537,7 @@ void Significance::reset() noexcept {
   time_acc_s_ = 0.0;
   kept_recency_ = 0;
   kept_line_ = 0;
+  kept_surface_ = 0;
   score_ = 0.0F;
   set_rate(options_.initial_rate_hz);
 }
@@ -494,6 +574,11 @@ void Significance::set_rate(double rate_hz) noexcept {
     line_us_[static_cast<std::size_t>(m - 1)] = static_cast<std::int32_t>(u_s * 1e6);
   }
   set_joint_thresholds();
+  // Edge-surface test: the largest total slot width W_K (µs) with P(Poisson((λ/2)·W_K) >= K) <= alpha_s.
+  for (std::size_t k = 0; k < surface_width_us_.size(); ++k) {
+    surface_width_us_[k] = rate_hz_ > 0.0 ? surface_mu_[k] / (0.5 * rate_hz_) * 1e6
+                                          : (surface_mu_[k] > 0.0 ? std::numeric_limits<double>::max() : 0.0);
+  }
 }
 
 void Significance::set_joint_thresholds() noexcept {
@@ -579,10 +664,12 @@ double Significance::rate_from_zero_support(double r0, double r1, double all, do
 
 void Significance::rebase(std::int64_t t_us) noexcept {
   const std::int64_t shift = (t_us - base_us_) - kKeepOnRebase;
-  for (auto& v : ring_) {
-    if (v == kNever) continue;
-    const std::int64_t time = static_cast<std::int64_t>(v >> 1) - shift;
-    v = time < kNeverTime / 2 ? kNever : static_cast<std::int32_t>(time * 2 + (v & 1));
+  for (auto* values : {&ring_, &kept_}) {
+    for (auto& v : *values) {
+      if (v == kNever) continue;
+      const std::int64_t time = static_cast<std::int64_t>(v >> 1) - shift;
+      v = time < kNeverTime / 2 ? kNever : static_cast<std::int32_t>(time * 2 + (v & 1));
+    }
   }
   base_us_ += shift;
 }
@@ -741,6 +828,16 @@ bool Significance::accept(const Event& e) noexcept {
     keep = line >= 1.0F;
     kept_line_ += keep ? 1 : 0;
   }
+  // The edge-surface test, for an event with at least one matched past half-line (an event on an edge surface with
+  // kept events around it has one; noise in an edge's wake has none - and gating a test only lowers its false-alarm
+  // rate). Causal: now; with the look-ahead: at t + L, after the joint test (SignificanceFilter::decide_before).
+  if (!keep && lookahead_us_ == 0 && !kept_.empty() && past_n_ > 0) {
+    const float surface = surface_ratio_at(centre, now, polarity, 0);
+    score = std::max(score, surface);
+    keep = surface >= 1.0F;
+    kept_surface_ += keep ? 1 : 0;
+  }
+  if (keep && !kept_.empty()) kept_[centre] = std::max(kept_[centre], now * 2 + polarity);
   score_ = score;
   // Stamp the event into its pixel's ring (newest first), kept or not.
   std::int32_t* own = ring_.data() + centre * kRing;
@@ -761,6 +858,13 @@ void Significance::prefetch_block(const Event& e) const noexcept {
     const char* row = reinterpret_cast<const char*>(ring_.data() + (c + dy * stride_ - 1) * kRing);
     __builtin_prefetch(row);
     __builtin_prefetch(row + std::size_t{3} * kRing * sizeof(std::int32_t) - 1);
+  }
+  if (!kept_.empty()) {  // the edge-surface test's kept events (5×5 block: 5 rows of 20 bytes)
+    for (std::int64_t dy = -2; dy <= 2; ++dy) {
+      const char* row = reinterpret_cast<const char*>(kept_.data() + c + dy * stride_ - 2);
+      __builtin_prefetch(row);
+      __builtin_prefetch(row + 5 * sizeof(std::int32_t) - 1);
+    }
   }
 }
 
@@ -872,6 +976,110 @@ bool Significance::joint_may_pass(const Event& e, const std::int32_t* past_ages,
   return false;
 }
 
+// ---- Edge-surface test (slow edges; docs/algorithms.md, "Edge-surface test") ----
+
+void Significance::mark_kept(const Event& e) noexcept {
+  if (kept_.empty() || !geometry_.contains(e.x, e.y)) return;
+  const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
+  const auto v = static_cast<std::int32_t>((e.t_us - base_us_) * 2 + (e.polarity ? 1 : 0));
+  kept_[centre] = std::max(kept_[centre], v);
+}
+
+float Significance::surface_ratio(const Event& e, std::int32_t horizon_us) const noexcept {
+  if (kept_.empty() || !geometry_.contains(e.x, e.y)) return 0.0F;
+  const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
+  return surface_ratio_at(centre, static_cast<std::int32_t>(e.t_us - base_us_), e.polarity ? 1 : 0, horizon_us);
+}
+
+float Significance::surface_ratio_at(std::size_t centre, std::int32_t then, int polarity,
+                                     std::int32_t horizon_us) const noexcept {
+  // The motion prior: the kept events of the 5×5 block (own pixel excluded) of the event's polarity within
+  // [t − T, t + horizon]; their plane s(q) = a + g·q (s relative to t, µs) gives the local normal flow.
+  constexpr int kBlock = 24;
+  std::array<std::int32_t, kBlock> ps{};
+  std::array<std::int8_t, kBlock> pq{};  // index (dy + 2)·5 + dx + 2
+  int n = 0;
+  const auto c = static_cast<std::int64_t>(centre);
+  for (int dy = -2; dy <= 2; ++dy) {  // branch-free: every entry is written, n advances for the ones that count
+    const std::int32_t* row = kept_.data() + c + dy * stride_;
+    for (int dx = -2; dx <= 2; ++dx) {
+      const std::int32_t v = row[dx];
+      const std::int32_t s = (v >> 1) - then;
+      const bool ok =
+          (v != kNever) & ((v & 1) == polarity) & (s >= -window_us_) & (s <= horizon_us) & ((dx != 0) | (dy != 0));
+      const auto nu = static_cast<std::size_t>(std::min(n, kBlock - 1));
+      ps[nu] = s;
+      pq[nu] = static_cast<std::int8_t>((dy + 2) * 5 + dx + 2);
+      n += ok ? 1 : 0;
+    }
+  }
+  if (n < 3) return 0.0F;
+  PlaneSums sums;
+  for (int i = 0; i < n; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    sums.add(pq[iu] % 5 - 2, pq[iu] / 5 - 2, ps[iu], 1);
+  }
+  double a = 0.0;
+  double gx = 0.0;
+  double gy = 0.0;
+  if (!fit_plane(sums, a, gx, gy)) return 0.0F;
+  // The kept events fill their own slots only if the event is on their plane: the plane's time at p, a, within
+  // the widest tolerance among them. Otherwise their slots are empty (K comes from other events alone), which the
+  // test would not keep with fewer slots than kept points; skipped without reading the rings.
+  const double eps = options_.edge_precision_px;
+  std::int32_t oldest = 0;
+  for (int i = 0; i < n; ++i) oldest = std::max(oldest, std::abs(ps[static_cast<std::size_t>(i)]));
+  if (std::abs(a) > jitter_us_ + eps * oldest) return 0.0F;
+  // Once more without the points off the plane by more than the edge tolerance δ(|g·q|) (a kept noise event,
+  // another crossing), if three remain.
+  PlaneSums inliers = sums;
+  for (int i = 0; i < n; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    const int dx = pq[iu] % 5 - 2;
+    const int dy = pq[iu] / 5 - 2;
+    const double tau = gx * dx + gy * dy;
+    if (std::abs(ps[iu] - a - tau) > jitter_us_ + eps * std::abs(tau)) inliers.add(dx, dy, ps[iu], -1);
+  }
+  if (inliers.n < n && inliers.n >= 3) {
+    double a2 = 0.0;
+    double gx2 = 0.0;
+    double gy2 = 0.0;
+    if (fit_plane(inliers, a2, gx2, gy2)) gx = gx2, gy = gy2;
+  }
+  // Slots: if the event lies on that surface, p + q fires at t + τ_q, τ_q = g·q, within δ(|τ_q|) = δ₀ + ε|τ_q|,
+  // with its polarity. Under BA a slot holds such an event by chance with probability <= (λ/2)·w_q (w_q its
+  // window inside [t − T, t + horizon]); the count K of filled slots is then bounded by Poisson((λ/2)·Σ w_q).
+  const double cap = 4.0 * window_us_;  // |τ| beyond T: no slot (and no int overflow)
+  std::int64_t width_us = 0;
+  int k = 0;
+  for (int dy = -2; dy <= 2; ++dy) {
+    for (int dx = -2; dx <= 2; ++dx) {
+      if (dx == 0 && dy == 0) continue;
+      const double tau_d = gx * dx + gy * dy;
+      if (!(std::abs(tau_d) <= cap)) continue;
+      const auto tau = static_cast<std::int32_t>(std::floor(tau_d + 0.5));
+      const std::int32_t tol = jitter_us_ + static_cast<std::int32_t>(precision_ * static_cast<float>(std::abs(tau)));
+      const std::int32_t lo = std::max(tau - tol, -window_us_);
+      const std::int32_t hi = std::min(tau + tol, horizon_us);
+      if (hi <= lo) continue;
+      width_us += hi - lo;
+      const std::int32_t* r = ring_.data() + (c + dy * stride_ + dx) * kRing;
+      bool filled = false;
+      for (int j = 0; j < kRing; ++j) {
+        const std::int32_t v = r[j];
+        const std::int32_t s = (v >> 1) - then;
+        filled |= v != kNever && (v & 1) == polarity && s >= lo && s <= hi;
+      }
+      k += filled ? 1 : 0;
+    }
+  }
+  // Kept when P(Poisson((λ/2)·W) >= K) <= alpha_s, i.e. W <= W_K (set_rate); the margin W_K / W.
+  const double most = surface_width_us_[static_cast<std::size_t>(k)];
+  if (!(most > 0.0)) return 0.0F;
+  return static_cast<float>(std::min(most / static_cast<double>(std::max<std::int64_t>(width_us, 1)),
+                                     static_cast<double>(std::numeric_limits<float>::max())));
+}
+
 namespace {
 
 /// Look-ahead driver: every event enters a FIFO (one slot, reused: a ring that only grows, to the events of one
@@ -956,13 +1164,25 @@ class SignificanceFilter final : public Filter {
       if (!exact_scores_ && !impl_.joint_may_pass(x.event, x.past.data(), x.past_n)) {
         x.state = kDrop;  // joint_ratio < 1 for certain: the same decision (the score stays the causal one)
         ++bound_drops_;
+        if (x.past_n > 0) decide_surface(x);  // the edge-surface test still gets its say
+        if (x.state == kKeep) impl_.mark_kept(x.event);
         continue;
       }
       const float joint = impl_.joint_ratio(x.event, x.past.data(), x.past_n);
       x.score = std::max(x.score, joint);
       x.state = joint >= 1.0F ? kKeep : kDrop;
       kept_joint_ += joint >= 1.0F ? 1 : 0;
+      if (x.state == kDrop && x.past_n > 0) decide_surface(x);  // (the gate: Significance::accept)
+      if (x.state == kKeep) impl_.mark_kept(x.event);
     }
+  }
+  /// The edge-surface test of a waiting event the joint test rejected (the rings and kept events up to t + L).
+  void decide_surface(Entry& x) noexcept {
+    const float surface = impl_.surface_ratio(x.event, static_cast<std::int32_t>(lookahead_us_));
+    x.score = std::max(x.score, surface);
+    if (surface < 1.0F) return;
+    x.state = kKeep;
+    impl_.count_kept_surface();
   }
   void release(Decisions& out) {
     while (size_ > 0) {
@@ -998,6 +1218,7 @@ std::vector<ReportItem> Significance::report() const {
   return {{"noise_rate_hz", rate_hz_},
           {"kept_recency", static_cast<double>(kept_recency_)},
           {"kept_edge_line", static_cast<double>(kept_line_)},
+          {"kept_surface", static_cast<double>(kept_surface_)},
           {"line_window_us", static_cast<double>(line_us_[7])}};
 }
 
@@ -1031,6 +1252,8 @@ FilterSpec significance_spec() {
                                          "longest neighbour age the recency test uses (us; 0 = no recency test)");
             p.require_range("recency_max_us", static_cast<double>(o.recency_max_us), 0.0, 1e9);
             o.edge_line = p.boolean("edge_line", o.edge_line, "edge-line test for slow edges (false: recency only)");
+            o.surface = p.boolean("surface", o.surface,
+                                  "edge-surface test against the plane of nearby kept events (slow edges)");
             o.lookahead_us = p.integer("lookahead_us", o.lookahead_us,
                                        "look-ahead for the joint past + future edge-line test (us; 0 = causal)");
             p.require_range("lookahead_us", static_cast<double>(o.lookahead_us), 0.0, 1e6);

@@ -2,12 +2,15 @@
 // Significance filter: keeps an event when its support is improbable under background activity (BA) alone, at a
 // set false-alarm rate alpha, against the BA rate estimated online from the stream (docs/algorithms.md,
 // "Significance filter"). O(1) per event. Decides on arrival what the causal tests keep; with lookahead_us = L > 0
-// (default 20 ms) an event they reject is decided at t + L by the joint test (make_significance; decision latency L).
+// (default 20 ms) an event they reject is decided at t + L by the joint test and then the edge-surface test
+// (make_significance; decision latency L).
 //
-// Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Up to three
-// tests, each at alpha / max(2, tests) (so that a noise event passes with probability <= alpha); the edge-line test
-// decides by default, the joint look-ahead test runs when lookahead_us > 0, the recency test is optional
-// (recency_max_us > 0):
+// Noise model: BA is an independent Poisson process of rate lambda per pixel and polarity-balanced. Up to four
+// tests whose false-alarm shares add up to alpha (so that a noise event passes with probability <= alpha): alpha /
+// max(2, tests) each for the edge-line test, the optional recency test and the pair (joint look-ahead test,
+// edge-surface test), which split theirs in halves when both run; the edge-line test decides by default, the joint
+// look-ahead test runs when lookahead_us > 0, the edge-surface test when surface (default), the recency test is
+// optional (recency_max_us > 0):
 //  * recency (count) test: the ages a_q of the newest event of the 8 neighbours q (own pixel excluded: hot pixels
 //    and refractory bursts do not support themselves; each neighbour counts once, so a hot neighbour adds at most
 //    1) are i.i.d. Exp(lambda) under noise. Sorted a_(1) <= ... <= a_(8); the event passes when a_(k) <= A_k for
@@ -24,6 +27,12 @@
 //    0 < s, s2 <= L) gives 8 more independent half-lines; the 16 smallest matched ages (past and future) sorted,
 //    w_(1) <= ..., the event passes when w_(m) <= V_m, P(Binomial(16, p(V_m)) >= m) = alpha / 2 / 16. An edge
 //    with one line behind it (an edge entering the view, a corner) and one ahead of it passes.
+//  * edge-surface test (surface, default on; slow edges): the plane s(q) = a + g·q fitted to the kept events of the
+//    event's 5×5 block within [t − T, t + L] (the newest kept event per pixel; >= 3 of the event's polarity) is the
+//    local motion; the block's pixels p + q whose rings hold an event at t + g·q (within jitter + precision·|g·q|)
+//    are counted, K, against Poisson((lambda/2)·sum of the slot widths): kept when P(>= K) <= alpha_s (alpha_s:
+//    half the look-ahead test's part, all of it when causal). Runs on an event the other tests rejected, with a
+//    matched past half-line and the plane's time at p near t.
 // lambda: from the events whose 8 neighbours are all older than T0 = 10 ms (rate r0 per pixel·s, which noise
 // alone makes lambda·exp(−8·lambda·T0)), updated every rate_period_us with memory rate_memory_us; of its two roots
 // the larger (above 12.5 Hz/px) only when the whole event rate reaches it and the share at T1 = 1 ms points to it.
@@ -68,6 +77,10 @@ struct SignificanceOptions {
   /// dropped without the full future walk and keeps its causal score (the same decisions, cheaper at high noise;
   /// the pipeline runs it so, evdenoise's ROC needs the exact scores).
   bool exact_scores = true;
+  /// Edge-surface test (slow edges): an event the line tests reject is tested against the plane fitted to the
+  /// already-kept events of its 5×5 block (the local normal flow), counting the block's pixels whose events lie on
+  /// that plane through the event, against the count BA alone gives (docs/algorithms.md, "Edge-surface test").
+  bool surface = true;
 };
 
 class Significance {
@@ -112,6 +125,14 @@ class Significance {
   /// Starts fetching the rings joint_ratio(e, ...) reads first.
   void prefetch_block(const Event& e) const noexcept;
 
+  // Edge-surface test (options.surface): the newest kept event per pixel (mark_kept; accept() marks what it keeps,
+  // the look-ahead driver what it keeps later) gives the motion prior. surface_ratio(e, horizon_us) is
+  // log P / log alpha_s (>= 1: keep), P the chance of the event's on-plane support under BA, with slots up to
+  // t + horizon_us (0 when causal, L at the look-ahead's decision). 0 when the block has too few kept events.
+  [[nodiscard]] float surface_ratio(const Event& e, std::int32_t horizon_us) const noexcept;
+  void mark_kept(const Event& e) noexcept;
+  void count_kept_surface() noexcept { ++kept_surface_; }
+
  private:
   void allocate();
   void rebase(std::int64_t t_us) noexcept;
@@ -124,11 +145,17 @@ class Significance {
   int future_lines(std::size_t centre, std::int32_t then, int polarity,
                    std::array<std::int32_t, 8>& ages) const noexcept;
   void set_joint_thresholds() noexcept;
+  [[nodiscard]] float surface_ratio_at(std::size_t centre, std::int32_t then, int polarity,
+                                       std::int32_t horizon_us) const noexcept;
 
   SensorGeometry geometry_;
   SignificanceOptions options_;
   std::int64_t stride_;
-  std::vector<std::int32_t> ring_;  // kRing per padded pixel, newest first: (t − base)·2 + polarity
+  std::vector<std::int32_t> ring_;             // kRing per padded pixel, newest first: (t − base)·2 + polarity
+  std::vector<std::int32_t> kept_;             // per padded pixel, the newest kept event: (t − base)·2 + polarity
+  double surface_alpha_ = 0.0;                 // the edge-surface test's share of alpha
+  std::array<double, 25> surface_mu_{};        // K -> largest Poisson mean with P(>= K) <= surface_alpha_ (0: never)
+  std::array<double, 25> surface_width_us_{};  // K -> W_K = surface_mu_[K] / (λ/2), µs (set_rate)
   std::int64_t base_us_ = 0;
   bool started_ = false;
   std::int64_t last_t_us_ = 0;  // time of the previous event
@@ -161,6 +188,7 @@ class Significance {
   double time_acc_s_ = 0.0;
   std::uint64_t kept_recency_ = 0;
   std::uint64_t kept_line_ = 0;
+  std::uint64_t kept_surface_ = 0;
   float score_ = 0.0F;
 };
 
