@@ -42,8 +42,42 @@ class CountImage {
   }
   [[nodiscard]] std::size_t idx(int x, int y) const { return static_cast<std::size_t>(y) * w_ + x; }
 
+  // Which projected segment each pixel's events could come from: the segment whose band (band_px) covers it,
+  // kNoOwner when none, kShared when several. A pixel in another segment's band is explained by that edge too (a
+  // crossing grid line fills this cell's band and side strips alike; a near parallel one its side strip), so it
+  // tells nothing about this segment: cell() leaves it out of the band and the side strips.
+  static constexpr std::int32_t kNoOwner = -1;
+  static constexpr std::int32_t kShared = -2;
+  template <class Cells>
+  void set_owners(const Cells& cells, double band_px) {
+    owner_.assign(counts_.size(), kNoOwner);
+    for (const auto& c : cells) {
+      const int xa = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.x(), c.q_px.x()) - band_px)));
+      const int xb = std::min(w_ - 1, static_cast<int>(std::ceil(std::max(c.p_px.x(), c.q_px.x()) + band_px)));
+      const int ya = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.y(), c.q_px.y()) - band_px)));
+      const int yb = std::min(h_ - 1, static_cast<int>(std::ceil(std::max(c.p_px.y(), c.q_px.y()) + band_px)));
+      const Eigen::Vector2d d = c.q_px - c.p_px;
+      const double dd = d.squaredNorm();
+      for (int y = ya; y <= yb; ++y) {
+        for (int x = xa; x <= xb; ++x) {
+          const Eigen::Vector2d r = Eigen::Vector2d(x, y) - c.p_px;
+          const double t = dd > 0.0 ? std::clamp(r.dot(d) / dd, 0.0, 1.0) : 0.0;
+          if ((r - t * d).norm() > band_px) continue;
+          std::int32_t& o = owner_[idx(x, y)];
+          const auto seg = static_cast<std::int32_t>(c.segment);
+          o = (o == kNoOwner || o == seg) ? seg : kShared;
+        }
+      }
+    }
+  }
+  void clear_owners() { owner_.clear(); }
+  [[nodiscard]] bool foreign(std::size_t i, std::int32_t segment) const {
+    return !owner_.empty() && owner_[i] != kNoOwner && owner_[i] != segment;
+  }
+
   // Events in the band and the side strips of the cell p -> q (pixel centres at integer coordinates).
-  Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o, bool mark = true) {
+  Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o, bool mark = true,
+              std::int32_t segment = kNoOwner) {
     Counts c;
     const Eigen::Vector2d d = q - p;
     const double len = d.norm();
@@ -61,6 +95,10 @@ class CountImage {
         if (t < 0.0 || t >= len) continue;  // the cell's own length: neighbouring cells do not share pixels
         const double s = u.x() * r.y() - u.y() * r.x();
         const double a = std::abs(s);
+        if (foreign(idx(x, y), segment)) {
+          if (mark && a <= o.band_px) band_[idx(x, y)] = 1;  // the model's band all the same (not background)
+          continue;
+        }
         const double n = counts_[idx(x, y)];
         if (a <= o.band_px) {
           c.on += n;
@@ -90,6 +128,7 @@ class CountImage {
   int w_, h_;
   std::vector<std::uint32_t> counts_;
   std::vector<std::uint8_t> band_;
+  std::vector<std::int32_t> owner_;  // empty: every pixel counts for every cell
   std::size_t total_{0};
 };
 
@@ -197,7 +236,6 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
       c.n_px = Eigen::Vector2d(-d.y(), d.x()).normalized();
       c.p_px = *p;
       c.q_px = *q;
-      if (count) c.counts = img.cell(*p, *q, o, mark);
       if (motion_scale > 0.0 && before) {
         const auto m0 = camera.project(before->apply(c.P_m));
         const auto m1 = camera.project(T.apply(c.P_m));
@@ -207,6 +245,10 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
     }
     if (mine.size() < o.min_cells) continue;
     cells.insert(cells.end(), mine.begin(), mine.end());
+  }
+  if (count) {
+    img.set_owners(cells, o.band_px);
+    for (Cell& c : cells) c.counts = img.cell(c.p_px, c.q_px, o, mark, static_cast<std::int32_t>(c.segment));
   }
   return cells;
 }
@@ -465,6 +507,16 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
       if (alt.S) {
         for (std::size_t k = 0; k < cells.size(); ++k) mine_only[k] = mine_only[k] && !image[cells[k].segment];
       }
+      // The alternative's own crossings: its placed cells and the cells it shares with T (the images).
+      {
+        std::vector<Cell> drawn = other;
+        if (alt.S) {
+          for (const Cell& c : cells) {
+            if (image[c.segment]) drawn.push_back(c);
+          }
+        }
+        img.set_owners(drawn, o.band_px);
+      }
       std::vector<bool> other_supported(other.size(), false);
       std::vector<double> other_expected(other.size());
       for (std::size_t b = 0; b < other.size();) {
@@ -475,7 +527,8 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         const double share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * nm : rate);
         for (std::size_t k = b; k < e; ++k) {
           if (other_only[k]) {
-            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false);
+            other[k].counts =
+                img.cell(other[k].p_px, other[k].q_px, o, false, static_cast<std::int32_t>(other[k].segment));
             other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
           }
           other_expected[k] = share;
