@@ -26,6 +26,9 @@ constexpr double kNear_m = 1e-3;
 struct Counts {
   double on{0}, left{0}, right{0};
   double on_px{0}, left_px{0}, right_px{0};
+  double band_px{0};  ///< the band's pixels before those of other segments' bands were left out (>= on_px)
+  /// Share of the band that is this segment's alone (1 where no other segment passes).
+  [[nodiscard]] double own_share() const { return band_px > 0 ? on_px / band_px : 1.0; }
 };
 
 // Per-pixel event counts of the window.
@@ -95,6 +98,7 @@ class CountImage {
         if (t < 0.0 || t >= len) continue;  // the cell's own length: neighbouring cells do not share pixels
         const double s = u.x() * r.y() - u.y() * r.x();
         const double a = std::abs(s);
+        if (a <= o.band_px) c.band_px += 1;
         if (foreign(idx(x, y), segment)) {
           if (mark && a <= o.band_px) band_[idx(x, y)] = 1;  // the model's band all the same (not background)
           continue;
@@ -370,8 +374,10 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     for (const SegmentSupport& s : segs) {
       double excess = 0.0, swept = 0.0;
       for (std::size_t k = 0; k < s.cells; ++k, ++a) {
-        excess += cells[a].counts.on - res.noise_per_cell;
-        swept += motion_scale > 0.0 ? o.cell_px * cells[a].normal_motion_px : 1.0;
+        // A cell whose band is partly another segment's (a crossing) collects events on its own share only.
+        const double own = cells[a].counts.own_share();
+        excess += cells[a].counts.on - res.noise_per_cell * own;
+        swept += own * (motion_scale > 0.0 ? o.cell_px * cells[a].normal_motion_px : 1.0);
       }
       if (swept > 0.0) rates.push_back(std::max(excess, 0.0) / swept);
     }
@@ -398,7 +404,11 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
   std::vector<double> expected(cells.size(), 0.0);  // each cell's expected share (its segment's)
   for (SegmentSupport& s : segs) {
     s.normal_motion_px /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
-    const double expected_share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * s.normal_motion_px : rate);
+    double own = 0.0;  // the segment's mean own share of its bands
+    for (std::size_t k = 0; k < s.cells; ++k) own += cells[j + k].counts.own_share();
+    own /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
+    const double expected_share =
+        chance_supported(own * (motion_scale > 0.0 ? rate * o.cell_px * s.normal_motion_px : rate));
     std::fill_n(expected.begin() + static_cast<std::ptrdiff_t>(j), s.cells, expected_share);
     s.required = expected_share >= 0.5 && (motion_scale <= 0.0 || s.normal_motion_px >= o.min_normal_motion_px);
     ++res.segments_judged;
