@@ -45,15 +45,21 @@ class CountImage {
   }
   [[nodiscard]] std::size_t idx(int x, int y) const { return static_cast<std::size_t>(y) * w_ + x; }
 
-  // Which projected segment each pixel's events could come from: the segment whose band (band_px) covers it,
-  // kNoOwner when none, kShared when several. A pixel in another segment's band is explained by that edge too (a
-  // crossing grid line fills this cell's band and side strips alike; a near parallel one its side strip), so it
-  // tells nothing about this segment: cell() leaves it out of the band and the side strips.
-  static constexpr std::int32_t kNoOwner = -1;
-  static constexpr std::int32_t kShared = -2;
+  // Which directions of projected segments pass each pixel: a bit per direction bin (kDirectionBins over 180 deg)
+  // of every segment whose band (band_px) covers it. A pixel in the band of a segment of another direction (a
+  // crossing grid line) is explained by that edge as much as by this one, and a side-strip pixel in any other
+  // segment's band (a crossing, or a near parallel neighbour 4-6 px away on a small board) is not clutter beside
+  // this segment: cell() leaves both out. Segments of one direction sharing a band (an edge drawn twice, collinear
+  // pieces) keep it: their events support each of them alike.
+  static constexpr int kDirectionBins = 16;
+  [[nodiscard]] static int direction_bin(const Eigen::Vector2d& d) {
+    double a = std::atan2(d.y(), d.x());
+    if (a < 0.0) a += std::numbers::pi;
+    return std::clamp(static_cast<int>(a / std::numbers::pi * kDirectionBins), 0, kDirectionBins - 1);
+  }
   template <class Cells>
   void set_owners(const Cells& cells, double band_px) {
-    owner_.assign(counts_.size(), kNoOwner);
+    owner_.assign(counts_.size(), 0);
     for (const auto& c : cells) {
       const int xa = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.x(), c.q_px.x()) - band_px)));
       const int xb = std::min(w_ - 1, static_cast<int>(std::ceil(std::max(c.p_px.x(), c.q_px.x()) + band_px)));
@@ -61,26 +67,31 @@ class CountImage {
       const int yb = std::min(h_ - 1, static_cast<int>(std::ceil(std::max(c.p_px.y(), c.q_px.y()) + band_px)));
       const Eigen::Vector2d d = c.q_px - c.p_px;
       const double dd = d.squaredNorm();
+      const auto bit = static_cast<std::uint16_t>(1U << direction_bin(d));
       for (int y = ya; y <= yb; ++y) {
         for (int x = xa; x <= xb; ++x) {
           const Eigen::Vector2d r = Eigen::Vector2d(x, y) - c.p_px;
           const double t = dd > 0.0 ? std::clamp(r.dot(d) / dd, 0.0, 1.0) : 0.0;
           if ((r - t * d).norm() > band_px) continue;
-          std::int32_t& o = owner_[idx(x, y)];
-          const auto seg = static_cast<std::int32_t>(c.segment);
-          o = (o == kNoOwner || o == seg) ? seg : kShared;
+          owner_[idx(x, y)] |= bit;
         }
       }
     }
   }
-  void clear_owners() { owner_.clear(); }
-  [[nodiscard]] bool foreign(std::size_t i, std::int32_t segment) const {
-    return !owner_.empty() && owner_[i] != kNoOwner && owner_[i] != segment;
+  // Whether pixel i's events belong to another segment than one of direction bin `bin` (-1: every pixel counts):
+  // in the band, a segment of another direction (more than one bin away) passes it; in a side strip, any does.
+  [[nodiscard]] bool foreign(std::size_t i, int bin, bool in_band) const {
+    if (owner_.empty() || bin < 0 || owner_[i] == 0) return false;
+    if (!in_band) return true;
+    std::uint16_t same = 0;
+    for (int k = -1; k <= 1; ++k)
+      same |= static_cast<std::uint16_t>(1U << ((bin + k + kDirectionBins) % kDirectionBins));
+    return (owner_[i] & static_cast<std::uint16_t>(~same)) != 0;
   }
 
   // Events in the band and the side strips of the cell p -> q (pixel centres at integer coordinates).
   Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o, bool mark = true,
-              std::int32_t segment = kNoOwner) {
+              int bin = -1) {
     Counts c;
     const Eigen::Vector2d d = q - p;
     const double len = d.norm();
@@ -99,7 +110,7 @@ class CountImage {
         const double s = u.x() * r.y() - u.y() * r.x();
         const double a = std::abs(s);
         if (a <= o.band_px) c.band_px += 1;
-        if (foreign(idx(x, y), segment)) {
+        if (foreign(idx(x, y), bin, a <= o.band_px)) {
           if (mark && a <= o.band_px) band_[idx(x, y)] = 1;  // the model's band all the same (not background)
           continue;
         }
@@ -132,7 +143,7 @@ class CountImage {
   int w_, h_;
   std::vector<std::uint32_t> counts_;
   std::vector<std::uint8_t> band_;
-  std::vector<std::int32_t> owner_;  // empty: every pixel counts for every cell
+  std::vector<std::uint16_t> owner_;  // direction bits per pixel (set_owners); empty: every pixel counts
   std::size_t total_{0};
 };
 
@@ -252,7 +263,7 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
   }
   if (count) {
     img.set_owners(cells, o.band_px);
-    for (Cell& c : cells) c.counts = img.cell(c.p_px, c.q_px, o, mark, static_cast<std::int32_t>(c.segment));
+    for (Cell& c : cells) c.counts = img.cell(c.p_px, c.q_px, o, mark, CountImage::direction_bin(c.q_px - c.p_px));
   }
   return cells;
 }
@@ -537,8 +548,8 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         const double share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * nm : rate);
         for (std::size_t k = b; k < e; ++k) {
           if (other_only[k]) {
-            other[k].counts =
-                img.cell(other[k].p_px, other[k].q_px, o, false, static_cast<std::int32_t>(other[k].segment));
+            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false,
+                                       CountImage::direction_bin(other[k].q_px - other[k].p_px));
             other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
           }
           other_expected[k] = share;
