@@ -215,6 +215,31 @@ void mapped_segments(const camera::LineModel& model, const camera::Pose& S, std:
 // The cells of the visible segments of pose T (segments with fewer than min_cells in view dropped), with the
 // normal motion from the earlier pose `before` scaled by motion_scale; their bands are marked as the model's when
 // `mark`.
+// Which cells leave other segments' pixels out (CountImage::foreign): the cells of segments crossed along most of
+// their length (a share of at least VerifyOptions::crossing_share of their cells has another segment's band in its
+// band or side strips: a fine grid, whose lines are closer than the strips reach); -1 (every pixel counts) for the
+// others, whose few crossed cells (junctions, corners) the coverage tests tolerate. The cells of a segment are
+// contiguous (build_cells).
+std::vector<int> crossing_bins(CountImage& img, const std::vector<Cell>& cells, const VerifyOptions& o) {
+  std::vector<int> bins(cells.size(), -1);
+  for (std::size_t a = 0; a < cells.size();) {
+    std::size_t b = a;
+    std::size_t crossed = 0;
+    while (b < cells.size() && cells[b].segment == cells[a].segment) {
+      const int bin = CountImage::direction_bin(cells[b].q_px - cells[b].p_px);
+      const Counts all = img.cell(cells[b].p_px, cells[b].q_px, o, false, -1);
+      const Counts own = img.cell(cells[b].p_px, cells[b].q_px, o, false, bin);
+      crossed += own.on_px + own.left_px + own.right_px < all.on_px + all.left_px + all.right_px ? 1 : 0;
+      ++b;
+    }
+    if (static_cast<double>(crossed) >= o.crossing_share * static_cast<double>(b - a)) {
+      for (std::size_t k = a; k < b; ++k) bins[k] = CountImage::direction_bin(cells[k].q_px - cells[k].p_px);
+    }
+    a = b;
+  }
+  return bins;
+}
+
 std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera, const camera::LineModel& model,
                               const camera::Pose& T, const VerifyOptions& o, double motion_scale,
                               const camera::Pose* before, bool mark, bool count = true,
@@ -263,7 +288,9 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
   }
   if (count) {
     img.set_owners(cells, o.band_px);
-    for (Cell& c : cells) c.counts = img.cell(c.p_px, c.q_px, o, mark, CountImage::direction_bin(c.q_px - c.p_px));
+    const std::vector<int> bins = crossing_bins(img, cells, o);
+    for (std::size_t k = 0; k < cells.size(); ++k)
+      cells[k].counts = img.cell(cells[k].p_px, cells[k].q_px, o, mark, bins[k]);
   }
   return cells;
 }
@@ -538,6 +565,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         }
         img.set_owners(drawn, o.band_px);
       }
+      const std::vector<int> other_bins = crossing_bins(img, other, o);
       std::vector<bool> other_supported(other.size(), false);
       std::vector<double> other_expected(other.size());
       for (std::size_t b = 0; b < other.size();) {
@@ -548,8 +576,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         const double share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * nm : rate);
         for (std::size_t k = b; k < e; ++k) {
           if (other_only[k]) {
-            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false,
-                                       CountImage::direction_bin(other[k].q_px - other[k].p_px));
+            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false, other_bins[k]);
             other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
           }
           other_expected[k] = share;
