@@ -161,3 +161,38 @@ TEST(PriorAlignment, SmallGridBoardFromAPriorOff50mm10deg) {
     }
   }
 }
+
+// The real DAVIS240 board (../shared/data/real/davis240-evbench-checkerboard, seq_0003, pan + tilt) from its prior
+// (50 mm / 10 deg off), carried to windows every 120 ms: the line correspondences give no verified pose there (few,
+// one-sided lines of a 57 x 40 px board); the direct alignment does in most windows. Measured: 6 of 7 within
+// 10 mm / 1.4 deg, one wrong (255 ms: 76 mm / 19 deg, verified): why the option is off by default.
+TEST(PriorAlignment, RealBoardInitialisesFromThePrior) {
+  const std::string rel = "davis240-evbench-checkerboard/seq_0003";
+  EVPIPE_REQUIRE_REAL(dir, rel);
+  const auto cam = camera::load_camera(dir + "/camera.yaml");
+  const auto model = camera::load_line_model(dir + "/model.yaml");
+  const auto gt = camera::read_trajectory_csv(dir + "/gt.csv");
+  const auto batch = io::read_all(dir + "/events.aedat4");
+  const auto prior = camera::load_prior(dir + "/prior.yaml");
+  const camera::Pose offset = gt.front().pose.inverse() * prior.pose;  // the prior's error, carried to each window
+  pose::InitialiserOptions io;
+  io.direct_alignment = true;
+  io.verification.symmetries = pose::model_symmetries(model);
+  int good = 0, wrong = 0, windows = 0;
+  for (std::int64_t t = gt.front().t_us + 15'000; t + 15'000 < gt.back().t_us; t += 120'000) {
+    const auto truth = *camera::interpolate(gt, t);
+    camera::PosePrior p = prior;
+    p.pose = truth * offset;
+    const auto init = pose::initialise_pose(slice(batch.events, t - 15'000, t + 15'000), cam, model, p, io);
+    ++windows;
+    if (!init.ok) continue;
+    double deg = 0.0;
+    const double mm = board_error(init.T_cam_model, truth, deg);
+    good += mm <= 10.0 && deg <= 1.5 ? 1 : 0;
+    wrong += mm > 20.0 || deg > 2.0 ? 1 : 0;
+    std::cout << (t - gt.front().t_us) / 1000 << " ms: " << mm << " mm / " << deg << " deg (" << init.message << ")\n";
+  }
+  std::cout << good << " of " << windows << " windows initialised within 10 mm / 1.5 deg, " << wrong << " wrong\n";
+  EXPECT_GE(good, windows / 2);
+  EXPECT_LE(wrong, 1);  // a known defect (above), not the target: 0
+}
