@@ -251,6 +251,37 @@ TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
 }
 INSTANTIATE_TEST_SUITE_P(Sequences, RealBoard, ::testing::Values("seq_0001", "seq_0003"));
 
+// The reference pose of the pan + tilt sequence verifies: the board is small (squares of ~5.9 px), so every cell of
+// a grid line is crossed by the other direction's lines; when their events counted in a cell's side strips, the
+// vertical lines (moving ~0.7 px per window against ~2 px for the horizontal ones) were never supported and the
+// truth verified 7 of 19 segments. Pixels in another segment's band now count for no cell.
+TEST(PoseVerify, TheRealBoardsReferencePoseVerifies) {
+  EVPIPE_REQUIRE_REAL(dir, std::string("davis240-evbench-checkerboard/seq_0003"));
+  const auto cam = camera::load_camera(dir + "/camera.yaml");
+  const auto model = camera::load_line_model(dir + "/model.yaml");
+  const auto gt = camera::read_trajectory_csv(dir + "/gt.csv");
+  const auto batch = io::read_all(dir + "/events.aedat4");
+  pose::VerifyOptions vo;
+  vo.symmetries = pose::model_symmetries(model);
+  int windows = 0, verified = 0;
+  for (std::int64_t t0 = gt.front().t_us; t0 + 30'000 <= gt.back().t_us; t0 += 30'000) {
+    const auto truth = camera::interpolate(gt, t0 + 15'000);
+    if (!truth) continue;
+    ++windows;
+    pose::MotionHint hint;
+    hint.before.t_us = t0;
+    hint.before.pose = *camera::interpolate(gt, t0);
+    hint.t_us = t0 + 15'000;
+    const auto v = pose::verify_pose(slice(batch.events, t0, t0 + 30'000), cam, model, *truth, vo, hint);
+    verified += v.ok ? 1 : 0;
+  }
+  // Measured 19 of 25 (before: the two windows checked showed 7 of 19 segments). The others fail only the
+  // observability test: the 57 x 40 px board's tilt from its supported cells is 2.0-2.5 deg at 1 sigma, just over
+  // the 2 deg bound (the planar target's weak tilt, docs/algorithms.md).
+  std::cout << "seq_0003: the reference verifies in " << verified << " of " << windows << " windows\n";
+  EXPECT_GE(verified, windows * 7 / 10);
+}
+
 // The partial symmetries of the two bundled models: the board's outline is mapped onto itself by the 180 deg turns
 // about its three axes (the inner marks are not); the roadheader's body box by the turns about its own centre.
 TEST(PoseVerify, ModelSymmetriesOfTheBundledModels) {

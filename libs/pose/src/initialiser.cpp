@@ -1,6 +1,7 @@
 #include "evpipe/pose/initialiser.hpp"
 
 #include "evpipe/pose/opnl.hpp"
+#include "evpipe/pose/tracker.hpp"
 #include "evpipe/pose/types.hpp"
 #include "evpipe/pose/verification.hpp"
 
@@ -8,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <numeric>
 #include <random>
@@ -602,8 +604,97 @@ std::vector<camera::Pose> pseudo_priors(const std::vector<Detected>& det, const 
 
 }  // namespace
 
+namespace {
+
+// Largest image displacement (pixels) of the model's segment ends between two poses; infinity when one is not in
+// front of the camera.
+double image_distance_px(const camera::CameraModel& cam, const camera::LineModel& model, const camera::Pose& a,
+                         const camera::Pose& b) {
+  double d = 0.0;
+  for (const auto& s : model.segments_m) {
+    for (const Vector3d& m : {s.a_m, s.b_m}) {
+      const Vector3d pa = a.apply(m), pb = b.apply(m);
+      if (pa.z() < kNear_m || pb.z() < kNear_m) return std::numeric_limits<double>::infinity();
+      d = std::max(d, (pinhole(cam, pa) - pinhole(cam, pb)).norm());
+    }
+  }
+  return d;
+}
+
+// The direct alignment with the prior (InitialiserOptions::direct_alignment), refined and verified by the tracker.
+InitResult initialise_by_alignment(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                                   const camera::PosePrior& prior, const InitialiserOptions& options) {
+  InitResult res;
+  res.T_cam_model = prior.pose;
+  res.direct = true;
+  res.pseudo_priors = 1;
+  const PriorAlignmentResult a = align_at_prior(events, camera, model, prior, options.alignment);
+  res.hypotheses = a.evaluations;
+  if (!a.ok) {
+    res.message = a.message;
+    return res;
+  }
+  TrackerOptions to;
+  to.verification = options.verification;
+  const TrackUpdate best = track_window(events, camera, model, a.T_cam_model, to);
+  const bool inside = camera::translation_distance_m(best.T_cam_model, prior.pose) <= prior.position_tolerance_m &&
+                      camera::rotation_angle_deg(best.T_cam_model, prior.pose) <= prior.angle_tolerance_deg;
+  if (!best.healthy || !inside) {
+    res.message = fmt::format("its pose ({}) does not verify once refined: {}", a.message,
+                              inside ? best.reason : "outside the prior's tolerance");
+    return res;
+  }
+  if (a.runner_up) {
+    // The events must tell the pose from the nearest other local optimum (a grid shifted by a line).
+    const TrackUpdate other = track_window(events, camera, model, *a.runner_up, to);
+    if (other.healthy &&
+        image_distance_px(camera, model, best.T_cam_model, other.T_cam_model) > options.alignment.runner_up_px) {
+      const PoseComparison cmp =
+          compare_poses(events, camera, model, best.T_cam_model, other.T_cam_model, options.verification);
+      if (cmp.log_ratio < symmetry_decision_log_ratio(options.verification)) {
+        res.message = fmt::format(
+            "its pose and the runner-up (a distinct local optimum) both verify and the events do not tell them apart "
+            "(log-likelihood ratio {:.1f} on {} + {} cells): ambiguous",
+            cmp.log_ratio, cmp.cells_a_only, cmp.cells_b_only);
+        return res;
+      }
+    }
+  }
+  res.ok = true;
+  res.verified = true;
+  res.T_cam_model = best.T_cam_model;
+  res.explained_events = best.inliers;
+  res.support_share = best.inlier_share;
+  res.message = fmt::format("direct alignment ({}), refined: {} inliers, sigma {:.2f} px", a.message, best.inliers,
+                            best.sigma_px);
+  return res;
+}
+
+InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                                 const std::optional<camera::PosePrior>& prior, const InitialiserOptions& options);
+
+}  // namespace
+
 InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
                            const std::optional<camera::PosePrior>& prior, const InitialiserOptions& options) {
+  InitResult lines = initialise_from_lines(events, camera, model, prior, options);
+  if (!prior || !options.direct_alignment || events.empty() || (lines.ok && lines.verified)) return lines;
+  InitResult direct = initialise_by_alignment(events, camera, model, *prior, options);
+  if (direct.ok) {
+    direct.lines_detected = lines.lines_detected;
+    return direct;
+  }
+  // No verified pose: with a prior an unverified one is not returned (the tracker's verification refuses it anyway).
+  lines.ok = false;
+  lines.message = fmt::format("{}{}; direct alignment: {}", lines.message,
+                              lines.verified || lines.message.empty() ? "" : " (not verified)", direct.message);
+  return lines;
+}
+
+namespace {
+
+InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
+                                 const std::optional<camera::PosePrior>& prior, const InitialiserOptions& options) {
   InitResult res;
   if (prior) res.T_cam_model = prior->pose;
   if (events.empty()) {
@@ -737,6 +828,7 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
     res.line_share = search.line_share(chosen.T);
   }
   res.ok = true;
+  res.verified = chosen.verified;
   res.T_cam_model = chosen.T;
   res.message = fmt::format(
       "{} lines ({:.0f}% of their events on lines the pose matches), {} correspondences, {} "
@@ -744,5 +836,7 @@ InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, 
       lines.size(), 100.0 * res.line_share, best->correspondences, best->explained, 100.0 * res.support_share);
   return res;
 }
+
+}  // namespace
 
 }  // namespace evpipe::pose

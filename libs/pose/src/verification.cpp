@@ -26,6 +26,9 @@ constexpr double kNear_m = 1e-3;
 struct Counts {
   double on{0}, left{0}, right{0};
   double on_px{0}, left_px{0}, right_px{0};
+  double band_px{0};  ///< the band's pixels before those of other segments' bands were left out (>= on_px)
+  /// Share of the band that is this segment's alone (1 where no other segment passes).
+  [[nodiscard]] double own_share() const { return band_px > 0 ? on_px / band_px : 1.0; }
 };
 
 // Per-pixel event counts of the window.
@@ -42,8 +45,53 @@ class CountImage {
   }
   [[nodiscard]] std::size_t idx(int x, int y) const { return static_cast<std::size_t>(y) * w_ + x; }
 
+  // Which directions of projected segments pass each pixel: a bit per direction bin (kDirectionBins over 180 deg)
+  // of every segment whose band (band_px) covers it. A pixel in the band of a segment of another direction (a
+  // crossing grid line) is explained by that edge as much as by this one, and a side-strip pixel in any other
+  // segment's band (a crossing, or a near parallel neighbour 4-6 px away on a small board) is not clutter beside
+  // this segment: cell() leaves both out. Segments of one direction sharing a band (an edge drawn twice, collinear
+  // pieces) keep it: their events support each of them alike.
+  static constexpr int kDirectionBins = 16;
+  [[nodiscard]] static int direction_bin(const Eigen::Vector2d& d) {
+    double a = std::atan2(d.y(), d.x());
+    if (a < 0.0) a += std::numbers::pi;
+    return std::clamp(static_cast<int>(a / std::numbers::pi * kDirectionBins), 0, kDirectionBins - 1);
+  }
+  template <class Cells>
+  void set_owners(const Cells& cells, double band_px) {
+    owner_.assign(counts_.size(), 0);
+    for (const auto& c : cells) {
+      const int xa = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.x(), c.q_px.x()) - band_px)));
+      const int xb = std::min(w_ - 1, static_cast<int>(std::ceil(std::max(c.p_px.x(), c.q_px.x()) + band_px)));
+      const int ya = std::max(0, static_cast<int>(std::floor(std::min(c.p_px.y(), c.q_px.y()) - band_px)));
+      const int yb = std::min(h_ - 1, static_cast<int>(std::ceil(std::max(c.p_px.y(), c.q_px.y()) + band_px)));
+      const Eigen::Vector2d d = c.q_px - c.p_px;
+      const double dd = d.squaredNorm();
+      const auto bit = static_cast<std::uint16_t>(1U << direction_bin(d));
+      for (int y = ya; y <= yb; ++y) {
+        for (int x = xa; x <= xb; ++x) {
+          const Eigen::Vector2d r = Eigen::Vector2d(x, y) - c.p_px;
+          const double t = dd > 0.0 ? std::clamp(r.dot(d) / dd, 0.0, 1.0) : 0.0;
+          if ((r - t * d).norm() > band_px) continue;
+          owner_[idx(x, y)] |= bit;
+        }
+      }
+    }
+  }
+  // Whether pixel i's events belong to another segment than one of direction bin `bin` (-1: every pixel counts):
+  // in the band, a segment of another direction (more than one bin away) passes it; in a side strip, any does.
+  [[nodiscard]] bool foreign(std::size_t i, int bin, bool in_band) const {
+    if (owner_.empty() || bin < 0 || owner_[i] == 0) return false;
+    if (!in_band) return true;
+    std::uint16_t same = 0;
+    for (int k = -1; k <= 1; ++k)
+      same |= static_cast<std::uint16_t>(1U << ((bin + k + kDirectionBins) % kDirectionBins));
+    return (owner_[i] & static_cast<std::uint16_t>(~same)) != 0;
+  }
+
   // Events in the band and the side strips of the cell p -> q (pixel centres at integer coordinates).
-  Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o, bool mark = true) {
+  Counts cell(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const VerifyOptions& o, bool mark = true,
+              int bin = -1) {
     Counts c;
     const Eigen::Vector2d d = q - p;
     const double len = d.norm();
@@ -61,6 +109,11 @@ class CountImage {
         if (t < 0.0 || t >= len) continue;  // the cell's own length: neighbouring cells do not share pixels
         const double s = u.x() * r.y() - u.y() * r.x();
         const double a = std::abs(s);
+        if (a <= o.band_px) c.band_px += 1;
+        if (foreign(idx(x, y), bin, a <= o.band_px)) {
+          if (mark && a <= o.band_px) band_[idx(x, y)] = 1;  // the model's band all the same (not background)
+          continue;
+        }
         const double n = counts_[idx(x, y)];
         if (a <= o.band_px) {
           c.on += n;
@@ -90,6 +143,7 @@ class CountImage {
   int w_, h_;
   std::vector<std::uint32_t> counts_;
   std::vector<std::uint8_t> band_;
+  std::vector<std::uint16_t> owner_;  // direction bits per pixel (set_owners); empty: every pixel counts
   std::size_t total_{0};
 };
 
@@ -161,6 +215,31 @@ void mapped_segments(const camera::LineModel& model, const camera::Pose& S, std:
 // The cells of the visible segments of pose T (segments with fewer than min_cells in view dropped), with the
 // normal motion from the earlier pose `before` scaled by motion_scale; their bands are marked as the model's when
 // `mark`.
+// Which cells leave other segments' pixels out (CountImage::foreign): the cells of segments crossed along most of
+// their length (a share of at least VerifyOptions::crossing_share of their cells has another segment's band in its
+// band or side strips: a fine grid, whose lines are closer than the strips reach); -1 (every pixel counts) for the
+// others, whose few crossed cells (junctions, corners) the coverage tests tolerate. The cells of a segment are
+// contiguous (build_cells).
+std::vector<int> crossing_bins(CountImage& img, const std::vector<Cell>& cells, const VerifyOptions& o) {
+  std::vector<int> bins(cells.size(), -1);
+  for (std::size_t a = 0; a < cells.size();) {
+    std::size_t b = a;
+    std::size_t crossed = 0;
+    while (b < cells.size() && cells[b].segment == cells[a].segment) {
+      const int bin = CountImage::direction_bin(cells[b].q_px - cells[b].p_px);
+      const Counts all = img.cell(cells[b].p_px, cells[b].q_px, o, false, -1);
+      const Counts own = img.cell(cells[b].p_px, cells[b].q_px, o, false, bin);
+      crossed += own.on_px + own.left_px + own.right_px < all.on_px + all.left_px + all.right_px ? 1 : 0;
+      ++b;
+    }
+    if (static_cast<double>(crossed) >= o.crossing_share * static_cast<double>(b - a)) {
+      for (std::size_t k = a; k < b; ++k) bins[k] = CountImage::direction_bin(cells[k].q_px - cells[k].p_px);
+    }
+    a = b;
+  }
+  return bins;
+}
+
 std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera, const camera::LineModel& model,
                               const camera::Pose& T, const VerifyOptions& o, double motion_scale,
                               const camera::Pose* before, bool mark, bool count = true,
@@ -197,7 +276,6 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
       c.n_px = Eigen::Vector2d(-d.y(), d.x()).normalized();
       c.p_px = *p;
       c.q_px = *q;
-      if (count) c.counts = img.cell(*p, *q, o, mark);
       if (motion_scale > 0.0 && before) {
         const auto m0 = camera.project(before->apply(c.P_m));
         const auto m1 = camera.project(T.apply(c.P_m));
@@ -207,6 +285,12 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
     }
     if (mine.size() < o.min_cells) continue;
     cells.insert(cells.end(), mine.begin(), mine.end());
+  }
+  if (count) {
+    img.set_owners(cells, o.band_px);
+    const std::vector<int> bins = crossing_bins(img, cells, o);
+    for (std::size_t k = 0; k < cells.size(); ++k)
+      cells[k].counts = img.cell(cells[k].p_px, cells[k].q_px, o, mark, bins[k]);
   }
   return cells;
 }
@@ -328,8 +412,10 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     for (const SegmentSupport& s : segs) {
       double excess = 0.0, swept = 0.0;
       for (std::size_t k = 0; k < s.cells; ++k, ++a) {
-        excess += cells[a].counts.on - res.noise_per_cell;
-        swept += motion_scale > 0.0 ? o.cell_px * cells[a].normal_motion_px : 1.0;
+        // A cell whose band is partly another segment's (a crossing) collects events on its own share only.
+        const double own = cells[a].counts.own_share();
+        excess += cells[a].counts.on - res.noise_per_cell * own;
+        swept += own * (motion_scale > 0.0 ? o.cell_px * cells[a].normal_motion_px : 1.0);
       }
       if (swept > 0.0) rates.push_back(std::max(excess, 0.0) / swept);
     }
@@ -356,7 +442,11 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
   std::vector<double> expected(cells.size(), 0.0);  // each cell's expected share (its segment's)
   for (SegmentSupport& s : segs) {
     s.normal_motion_px /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
-    const double expected_share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * s.normal_motion_px : rate);
+    double own = 0.0;  // the segment's mean own share of its bands
+    for (std::size_t k = 0; k < s.cells; ++k) own += cells[j + k].counts.own_share();
+    own /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
+    const double expected_share =
+        chance_supported(own * (motion_scale > 0.0 ? rate * o.cell_px * s.normal_motion_px : rate));
     std::fill_n(expected.begin() + static_cast<std::ptrdiff_t>(j), s.cells, expected_share);
     s.required = expected_share >= 0.5 && (motion_scale <= 0.0 || s.normal_motion_px >= o.min_normal_motion_px);
     ++res.segments_judged;
@@ -465,6 +555,17 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
       if (alt.S) {
         for (std::size_t k = 0; k < cells.size(); ++k) mine_only[k] = mine_only[k] && !image[cells[k].segment];
       }
+      // The alternative's own crossings: its placed cells and the cells it shares with T (the images).
+      {
+        std::vector<Cell> drawn = other;
+        if (alt.S) {
+          for (const Cell& c : cells) {
+            if (image[c.segment]) drawn.push_back(c);
+          }
+        }
+        img.set_owners(drawn, o.band_px);
+      }
+      const std::vector<int> other_bins = crossing_bins(img, other, o);
       std::vector<bool> other_supported(other.size(), false);
       std::vector<double> other_expected(other.size());
       for (std::size_t b = 0; b < other.size();) {
@@ -475,7 +576,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         const double share = chance_supported(motion_scale > 0.0 ? rate * o.cell_px * nm : rate);
         for (std::size_t k = b; k < e; ++k) {
           if (other_only[k]) {
-            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false);
+            other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false, other_bins[k]);
             other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
           }
           other_expected[k] = share;

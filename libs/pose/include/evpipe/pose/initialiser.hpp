@@ -8,6 +8,7 @@
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/core/event.hpp"
 #include "evpipe/pose/line_detector.hpp"
+#include "evpipe/pose/prior_alignment.hpp"
 #include "evpipe/pose/verification.hpp"
 
 #include <cstddef>
@@ -87,6 +88,16 @@ struct InitialiserOptions {
   /// The refined candidates are ranked by verify_pose() with these options (verified first, then supported
   /// cells, then explained events).
   VerifyOptions verification;
+  /// With a prior, when the line correspondences give no verified pose (a small target with a fine grid: few,
+  /// one-sided detected lines), the pose is searched by aligning the model with the events directly
+  /// (prior_alignment.hpp); its best pose and its runner-up are refined by the tracker (track_window with
+  /// `verification`) and the pose is accepted only when it verifies and the runner-up, if it verifies too, is
+  /// clearly worse (compare_poses beyond symmetry_decision_log_ratio). Without a verified pose the result is not ok.
+  /// Off by default: on the real evbench board it initialises correctly in most windows but once (seq_0003, 255 ms)
+  /// a wrong pose (76 mm / 19 deg) verified; on clutter-planar-lines with a prior it starts the track earlier, and
+  /// the tracker then drifts to one wrong confident pose (2.4 deg) that the line search avoided (docs/results-pose.md).
+  bool direct_alignment = false;
+  PriorAlignmentOptions alignment;
 };
 
 struct InitResult {
@@ -100,6 +111,8 @@ struct InitResult {
   double line_share{0.0};           ///< share of the detected lines' support on lines matching the chosen pose
   std::size_t hypotheses{0};        ///< OPnL solves on minimal sets
   std::size_t pseudo_priors{0};     ///< poses the search started from (1 with a prior)
+  bool verified{false};             ///< the pose passed verify_pose() (with a prior, ok implies verified)
+  bool direct{false};               ///< found by the direct alignment (InitialiserOptions::direct_alignment)
 };
 
 [[nodiscard]] InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera,

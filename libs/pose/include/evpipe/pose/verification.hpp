@@ -47,6 +47,11 @@ struct VerifyOptions {
   double side_gap_px = 0.5;    ///< the side strips start this far beyond the band ...
   double side_width_px = 1.5;  ///< ... and are this wide, one on each side
   double side_ratio = 1.5;     ///< a supported band's event density exceeds each side strip's by this factor
+  /// A segment whose cells meet another projected segment's band (in their band or side strips) in at least this
+  /// share judges its cells on its own pixels only: a crossing grid line's events explain those pixels as much as
+  /// this segment (a fine grid: a small board's lines 5.9 px apart fill every side strip). A segment crossed in fewer
+  /// cells (junctions and corners of a sparse model) counts every pixel. > 1: never.
+  double crossing_share = 0.5;
   /// P(noise alone reaches a cell's support threshold); a segment must also hold more supported cells than
   /// noise alone gives at this rate (binomial, 3 sigma).
   double false_alarm = 0.05;

@@ -1,0 +1,198 @@
+// align_at_prior (prior_alignment.hpp): direct model-to-events alignment around a prior.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+#include <numbers>
+#include <optional>
+#include <random>
+
+#include "evpipe/camera/trajectory.hpp"
+#include "evpipe/io/reader.hpp"
+#include "evpipe/pose/initialiser.hpp"
+#include "evpipe/pose/prior_alignment.hpp"
+#include "evpipe/pose/tracker.hpp"
+#include "evpipe/pose/verification.hpp"
+#include "evpipe/sim/target3d.hpp"
+#include "evpipe_test_data.hpp"
+
+using namespace evpipe;
+
+namespace {
+
+EventSpan slice(const std::vector<Event>& ev, std::int64_t t0, std::int64_t t1) {
+  const auto a = std::lower_bound(ev.begin(), ev.end(), t0, [](const Event& e, std::int64_t t) { return e.t_us < t; });
+  const auto b = std::lower_bound(a, ev.end(), t1, [](const Event& e, std::int64_t t) { return e.t_us < t; });
+  return {a, b};
+}
+
+double board_error(const camera::Pose& est, const camera::Pose& truth, double& deg) {
+  const Eigen::Vector3d c(0.135, 0.0945, 0.0);
+  double best_mm = 1e300;
+  deg = 1e300;
+  for (int axis = -1; axis < 3; ++axis) {
+    camera::Pose S;
+    if (axis >= 0) {
+      S.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::Unit(axis)));
+      S.t_cam_model_m = c - S.q_cam_model * c;
+    }
+    const camera::Pose equivalent = truth * S;
+    const double mm = 1000.0 * camera::translation_distance_m(est, equivalent);
+    const double d = camera::rotation_angle_deg(est, equivalent);
+    if (mm + 10.0 * d < best_mm + 10.0 * deg) {
+      best_mm = mm;
+      deg = d;
+    }
+  }
+  return best_mm;
+}
+
+// A 10 x 7 grid board of 27 mm squares (the real evbench board's model): border + 9 + 6 grid lines.
+camera::LineModel grid_board() {
+  camera::LineModel m;
+  m.name = "board";
+  const double W = 0.270, H = 0.189, s = 0.027;
+  const auto add = [&](double x0, double y0, double x1, double y1) {
+    m.segments_m.push_back({Eigen::Vector3d(x0, y0, 0), Eigen::Vector3d(x1, y1, 0)});
+  };
+  add(0, 0, W, 0);
+  add(W, 0, W, H);
+  add(W, H, 0, H);
+  add(0, H, 0, 0);
+  for (int i = 1; i < 10; ++i) add(i * s, 0, i * s, H);
+  for (int j = 1; j < 7; ++j) add(0, j * s, W, j * s);
+  return m;
+}
+
+// The board seen small (DAVIS346 at 1.2 m: grid lines a few pixels apart, as the real DAVIS240 board), moving by
+// evsim's seeded default motion.
+struct BoardScene {
+  sim::TargetScene scene;
+  std::vector<Event> events;
+  explicit BoardScene(std::uint64_t seed) {
+    const auto cfg = evpipe::testing::source_dir() / "config";
+    scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+    scene.model = grid_board();
+    sim::MotionOptions mo;
+    mo.base = sim::facing_pose(scene.model, 1.2, sim::default_view(scene.model));
+    mo.pivot_model_m = sim::bbox_centre(scene.model);
+    std::mt19937_64 rng(seed);
+    scene.trajectory = sim::generate_motion(0, 300'000, mo, rng);
+    events = sim::render_target(scene, 0, 300'000, rng);
+  }
+};
+
+// The pose moved by position_m and turned by angle_deg about the model's centre (seeded random directions).
+camera::Pose perturbed(const camera::Pose& T, const Eigen::Vector3d& centre_model, double position_m, double angle_deg,
+                       std::mt19937_64& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  const Eigen::Vector3d dt = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized() * position_m;
+  const Eigen::Vector3d axis = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+  const Eigen::Quaterniond R(Eigen::AngleAxisd(angle_deg * std::numbers::pi / 180.0, axis));
+  const Eigen::Vector3d c = T.apply(centre_model);
+  camera::Pose P;
+  P.q_cam_model = (R * T.q_cam_model).normalized();
+  P.t_cam_model_m = R * (T.t_cam_model_m - c) + c + dt;
+  return P;
+}
+
+}  // namespace
+
+TEST(PriorAlignment, EmptyWindowIsNotOk) {
+  camera::CameraModel cam;
+  cam.width = 240;
+  cam.height = 180;
+  cam.fx = cam.fy = 200.0;
+  cam.cx = 120.0;
+  cam.cy = 90.0;
+  camera::PosePrior prior;
+  prior.pose.t_cam_model_m = Eigen::Vector3d(-0.135, -0.0945, 1.0);
+  const auto r = pose::align_at_prior({}, cam, grid_board(), prior);
+  EXPECT_FALSE(r.ok);
+  EXPECT_FALSE(r.message.empty());
+}
+
+// The score: the true pose beats the board shifted by one grid line (the aliasing the search must resolve) and the
+// board turned by 10 degrees.
+TEST(PriorAlignment, TheTruthScoresAboveTheGridShiftedByOneLine) {
+  const BoardScene s(3);
+  const std::int64_t t = 150'000;
+  const auto w = slice(s.events, t - 15'000, t + 15'000);
+  const camera::Pose truth = *camera::interpolate(s.scene.trajectory, t);
+  camera::Pose shifted = truth;
+  shifted.t_cam_model_m += truth.q_cam_model * Eigen::Vector3d(0.027, 0.0, 0.0);
+  const double at_truth = pose::prior_alignment_score(w, s.scene.camera, s.scene.model, truth);
+  EXPECT_GT(at_truth, 0.0);
+  EXPECT_GT(at_truth, pose::prior_alignment_score(w, s.scene.camera, s.scene.model, shifted));
+  std::mt19937_64 rng(5);
+  const camera::Pose turned = perturbed(truth, Eigen::Vector3d(0.135, 0.0945, 0.0), 0.0, 10.0, rng);
+  EXPECT_GT(at_truth, pose::prior_alignment_score(w, s.scene.camera, s.scene.model, turned));
+}
+
+// From a prior 50 mm / 10 deg off (seeded directions) the alignment lands within the tracker's reach of the truth
+// (measured: 1.5-12 mm / 1.6-5.7 deg before refinement), and a direct initialisation is never wrong. (The line
+// correspondences' pose of this small board can be: seen 130 mm / 21 deg verified from 4 lines, seed 3 at 240 ms.)
+TEST(PriorAlignment, SmallGridBoardFromAPriorOff50mm10deg) {
+  for (const std::uint64_t seed : {3u, 4u}) {
+    const BoardScene s(seed);
+    std::mt19937_64 rng(seed + 100);
+    for (std::int64_t t = 60'000; t <= 240'000; t += 60'000) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << ", window at " << t);
+      const auto w = slice(s.events, t - 30'000, t + 30'000);
+      const camera::Pose truth = *camera::interpolate(s.scene.trajectory, t);
+      camera::PosePrior prior;
+      prior.pose = perturbed(truth, Eigen::Vector3d(0.135, 0.0945, 0.0), 0.05, 10.0, rng);
+      const auto a = pose::align_at_prior(w, s.scene.camera, s.scene.model, prior);
+      ASSERT_TRUE(a.ok) << a.message;
+      double deg = 0.0;
+      const double mm = board_error(a.T_cam_model, truth, deg);
+      std::cout << w.size() << " events, aligned: " << mm << " mm / " << deg << " deg (" << a.message << ")\n";
+      EXPECT_LT(mm, 20.0);
+      EXPECT_LT(deg, 8.0);
+      pose::InitialiserOptions io;
+      io.verification.symmetries = pose::model_symmetries(s.scene.model);
+      const auto init = pose::initialise_pose(w, s.scene.camera, s.scene.model, prior, io);
+      if (!init.ok || !init.direct) continue;
+      EXPECT_TRUE(init.verified);
+      EXPECT_LT(board_error(init.T_cam_model, truth, deg), 20.0);
+      EXPECT_LT(deg, 2.0);
+    }
+  }
+}
+
+// The real DAVIS240 board (../shared/data/real/davis240-evbench-checkerboard, seq_0003, pan + tilt) from its prior
+// (50 mm / 10 deg off), carried to windows every 120 ms: the line correspondences give no verified pose there (few,
+// one-sided lines of a 57 x 40 px board); the direct alignment does in most windows. Measured: 6 of 7 within
+// 10 mm / 1.4 deg, one wrong (255 ms: 76 mm / 19 deg, verified): why the option is off by default.
+TEST(PriorAlignment, RealBoardInitialisesFromThePrior) {
+  const std::string rel = "davis240-evbench-checkerboard/seq_0003";
+  EVPIPE_REQUIRE_REAL(dir, rel);
+  const auto cam = camera::load_camera(dir + "/camera.yaml");
+  const auto model = camera::load_line_model(dir + "/model.yaml");
+  const auto gt = camera::read_trajectory_csv(dir + "/gt.csv");
+  const auto batch = io::read_all(dir + "/events.aedat4");
+  const auto prior = camera::load_prior(dir + "/prior.yaml");
+  const camera::Pose offset = gt.front().pose.inverse() * prior.pose;  // the prior's error, carried to each window
+  pose::InitialiserOptions io;
+  io.direct_alignment = true;
+  io.verification.symmetries = pose::model_symmetries(model);
+  int good = 0, wrong = 0, windows = 0;
+  for (std::int64_t t = gt.front().t_us + 15'000; t + 15'000 < gt.back().t_us; t += 120'000) {
+    const auto truth = *camera::interpolate(gt, t);
+    camera::PosePrior p = prior;
+    p.pose = truth * offset;
+    const auto init = pose::initialise_pose(slice(batch.events, t - 15'000, t + 15'000), cam, model, p, io);
+    ++windows;
+    if (!init.ok) continue;
+    double deg = 0.0;
+    const double mm = board_error(init.T_cam_model, truth, deg);
+    good += mm <= 10.0 && deg <= 1.5 ? 1 : 0;
+    wrong += mm > 20.0 || deg > 2.0 ? 1 : 0;
+    std::cout << (t - gt.front().t_us) / 1000 << " ms: " << mm << " mm / " << deg << " deg (" << init.message << ")\n";
+  }
+  std::cout << good << " of " << windows << " windows initialised within 10 mm / 1.5 deg, " << wrong << " wrong\n";
+  EXPECT_GE(good, windows / 2);
+  EXPECT_LE(wrong, 1);  // a known defect (above), not the target: 0
+}
