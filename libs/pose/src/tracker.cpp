@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <numbers>
 #include <vector>
@@ -75,9 +76,23 @@ bool line_geometry(const ProjectedSegment& s, const Eigen::Matrix3d& R, const Ei
   return true;
 }
 
-// Residuals (normalised units) of every association at pose T; false when a segment degenerates there.
+// Each segment's own motion over the window (TrackerOptions::segment_motion): an edge moving at normal speed
+// beta_k puts its events at distance beta_k tau from its line at the pose's time (tau = t_event - t_ref), so the
+// residuals are r_j = J_j delta + beta_k tau_j + noise. beta_k is a nuisance parameter of segment k: fitted by
+// weighted least squares at every evaluation (the variable-projection residuals below) and eliminated from the
+// pose's normal equations by its Schur complement.
+struct SegmentMotion {
+  std::int64_t t_ref_us{0};   // the pose's time
+  std::vector<double> tau_s;  // per association: its event's time - t_ref (below), seconds
+  std::vector<double> beta;   // per segment: normal speed fitted at the last evaluation (normalised units / s)
+  const std::vector<double>* weights{nullptr};  // of the previous evaluation (nullptr: every association 1)
+};
+
+// Residuals (normalised units) of every association at pose T; false when a segment degenerates there. With a
+// segment motion, each segment's fitted normal motion beta_k tau is taken out of its residuals.
 bool residuals(const camera::Pose& T, const std::vector<ProjectedSegment>& segs, const std::vector<Association>& assoc,
-               double near_m, bool with_jacobian, std::vector<LineGeometry>& geom, std::vector<double>& r) {
+               double near_m, bool with_jacobian, std::vector<LineGeometry>& geom, std::vector<double>& r,
+               SegmentMotion* motion = nullptr) {
   const Eigen::Matrix3d R = T.rotation();
   geom.resize(segs.size());
   for (std::size_t k = 0; k < segs.size(); ++k) {
@@ -89,6 +104,21 @@ bool residuals(const camera::Pose& T, const std::vector<ProjectedSegment>& segs,
     const Eigen::Vector2d& p = assoc[j].p_n;
     r[j] = (g.n.x() * p.x() + g.n.y() * p.y() + g.n.z()) * g.inv_m;
   }
+  if (motion != nullptr) {
+    std::vector<double> str(segs.size(), 0.0), stt(segs.size(), 0.0);
+    const std::vector<double>* w = motion->weights;
+    for (std::size_t j = 0; j < assoc.size(); ++j) {
+      const double wj = w != nullptr && w->size() == assoc.size() ? (*w)[j] : 1.0;
+      const double tau = motion->tau_s[j];
+      str[assoc[j].segment] += wj * tau * r[j];
+      stt[assoc[j].segment] += wj * tau * tau;
+    }
+    motion->beta.assign(segs.size(), 0.0);
+    for (std::size_t k = 0; k < segs.size(); ++k) {
+      if (stt[k] > 0.0) motion->beta[k] = str[k] / stt[k];
+    }
+    for (std::size_t j = 0; j < assoc.size(); ++j) r[j] -= motion->beta[assoc[j].segment] * motion->tau_s[j];
+  }
   return true;
 }
 
@@ -96,17 +126,39 @@ bool residuals(const camera::Pose& T, const std::vector<ProjectedSegment>& segs,
 // event, dn/dX = M per segment, so sum_j w gj gjᵀ is collected per segment (3x3) and mapped once.
 void normal_equations(const std::vector<ProjectedSegment>& segs, const std::vector<Association>& assoc,
                       const std::vector<LineGeometry>& geom, const std::vector<double>& r, const std::vector<double>& w,
-                      Matrix6d& H, Vector6d& g) {
+                      Matrix6d& H, Vector6d& g, const SegmentMotion* motion = nullptr) {
   std::vector<Eigen::Matrix3d> A(segs.size(), Eigen::Matrix3d::Zero());
   std::vector<Eigen::Vector3d> b(segs.size(), Eigen::Vector3d::Zero());
+  // With segment motions: sum w tau², sum w tau g and sum w tau r per segment, for the Schur complement of beta.
+  std::vector<double> ctt, ctr;
+  std::vector<Eigen::Vector3d> htg;
+  if (motion != nullptr) {
+    ctt.assign(segs.size(), 0.0);
+    ctr.assign(segs.size(), 0.0);
+    htg.assign(segs.size(), Eigen::Vector3d::Zero());
+  }
   for (std::size_t j = 0; j < assoc.size(); ++j) {
     if (w[j] == 0.0) continue;
-    const LineGeometry& lg = geom[assoc[j].segment];
+    const std::size_t k = assoc[j].segment;
+    const LineGeometry& lg = geom[k];
     const Eigen::Vector2d& p = assoc[j].p_n;
     const double s = r[j] * lg.inv_m;
     const Eigen::Vector3d gj((p.x() - s * lg.n.x()) * lg.inv_m, (p.y() - s * lg.n.y()) * lg.inv_m, lg.inv_m);
-    A[assoc[j].segment].noalias() += w[j] * gj * gj.transpose();
-    b[assoc[j].segment].noalias() += (w[j] * r[j]) * gj;
+    A[k].noalias() += w[j] * gj * gj.transpose();
+    b[k].noalias() += (w[j] * r[j]) * gj;
+    if (motion != nullptr) {
+      const double tau = motion->tau_s[j];
+      ctt[k] += w[j] * tau * tau;
+      ctr[k] += w[j] * tau * r[j];
+      htg[k].noalias() += (w[j] * tau) * gj;
+    }
+  }
+  if (motion != nullptr) {
+    for (std::size_t k = 0; k < segs.size(); ++k) {
+      if (!(ctt[k] > 0.0)) continue;
+      A[k].noalias() -= htg[k] * htg[k].transpose() / ctt[k];
+      b[k].noalias() -= htg[k] * (ctr[k] / ctt[k]);
+    }
   }
   H.setZero();
   g.setZero();
@@ -118,7 +170,8 @@ void normal_equations(const std::vector<ProjectedSegment>& segs, const std::vect
 
 struct RoundResult {
   camera::Pose T;
-  double sigma_n{0.0};  // robust scale used (normalised units)
+  std::vector<double> w;  // least-squares weights at T (the segment motions' fit at the final pose uses them)
+  double sigma_n{0.0};    // robust scale used (normalised units)
   int iterations{0};
   bool converged{false};
 };
@@ -145,13 +198,14 @@ double robust_cost(const std::vector<double>& r, double sigma, const TrackerOpti
 
 RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegment>& segs,
                         const std::vector<Association>& assoc, double sigma_floor_n, double sigma_previous_n,
-                        const TrackerOptions& o) {
+                        const TrackerOptions& o, SegmentMotion* motion) {
   RoundResult res;
   res.T = T0;
   const double near_m = std::max(o.projection.near_m, 1e-6);
   std::vector<LineGeometry> geom, geom_try;
   std::vector<double> r, r_try, w, w_try, scratch;
-  if (!residuals(T0, segs, assoc, near_m, true, geom, r)) return res;
+  if (motion != nullptr) motion->weights = nullptr;
+  if (!residuals(T0, segs, assoc, near_m, true, geom, r, motion)) return res;
   if (o.lopet_compatible) {
     scratch.resize(r.size());
     for (std::size_t j = 0; j < r.size(); ++j) scratch[j] = std::abs(r[j]);
@@ -170,11 +224,17 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
     res.sigma_n = s >= sigma_floor_n ? s : sigma_floor_n;  // NaN-safe floor
   }
   double cost = robust_cost(r, res.sigma_n, o, w, scratch);
+  if (motion != nullptr) {
+    // The segment motions were fitted with every association at weight 1: once more with the robust weights.
+    motion->weights = &w;
+    if (!residuals(T0, segs, assoc, near_m, true, geom, r, motion)) return res;
+    cost = robust_cost(r, res.sigma_n, o, w, scratch);
+  }
   double lambda = o.lambda_initial;
   Matrix6d H;
   Vector6d g;
   for (int it = 0; it < o.max_iterations; ++it) {
-    normal_equations(segs, assoc, geom, r, w, H, g);
+    normal_equations(segs, assoc, geom, r, w, H, g, motion);
     double wsum = 0.0;
     for (double x : w) wsum += x;
     if (!(wsum > 0.0)) break;
@@ -195,7 +255,8 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
         continue;
       }
       const camera::Pose T_try = apply_increment(res.T, delta);
-      if (residuals(T_try, segs, assoc, near_m, true, geom_try, r_try)) {
+      if (motion != nullptr) motion->weights = &w;
+      if (residuals(T_try, segs, assoc, near_m, true, geom_try, r_try, motion)) {
         cost_try = robust_cost(r_try, res.sigma_n, o, w_try, scratch);
         if (cost_try <= cost) {
           accepted = true;
@@ -220,6 +281,10 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
       res.converged = true;
       break;
     }
+  }
+  if (motion != nullptr) {
+    res.w = w;
+    motion->weights = nullptr;  // w ends here
   }
   return res;
 }
@@ -316,7 +381,7 @@ double image_motion_px(const std::vector<ProjectedSegment>& segs, const camera::
 // failures report T_predicted, as track_window promises.
 TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const UndistortMap& map,
                        const camera::LineModel& model, const camera::Pose& T_predicted, const camera::Pose& T_start,
-                       const TrackerOptions& o) {
+                       const TrackerOptions& o, SegmentMotion* motion) {
   const camera::CameraModel& camera = map.camera();
   TrackUpdate up;
   up.T_cam_model = T_predicted;
@@ -336,6 +401,7 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
   const double sigma_floor_n = 1.0 / std::sqrt(12.0) / f;
   std::vector<ProjectedSegment> segs;
   std::vector<Association> assoc;
+  std::vector<double> last_w;  // the last round's weights (segment motions at the final pose)
   double sigma_n = 0.0;
   const int rounds = std::max(o.association_rounds, 1);
   for (int round = 0; round < rounds; ++round) {
@@ -351,6 +417,30 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
     associate_events(gathered, map, segs, ao, assoc);
     std::vector<std::size_t> counts(segs.size(), 0);
     for (const auto& a : assoc) ++counts[a.segment];
+    if (motion != nullptr && !assoc.empty()) {
+      // Times from the pose's time, but not past the end of the events' own time span: a sparse window's history
+      // (a target slowing to a stop) is not extrapolated beyond its data. The span's end is estimated from the
+      // events near the lines (within gate_min_px; background noise spreads over the gate and the whole span) as
+      // a uniform distribution's with their mean and spread, mean + sqrt(3) sd: for a full window it is the
+      // window's end. One reference for every segment: per-segment times would bend the model.
+      double n = 0.0, sum = 0.0, sum2 = 0.0;
+      for (const Association& a : assoc) {
+        if (a.distance_px > o.gate_min_px) continue;
+        const auto dt = static_cast<double>(events[a.event_index].t_us - motion->t_ref_us);
+        n += 1.0;
+        sum += dt;
+        sum2 += dt * dt;
+      }
+      double ref_us = 0.0;
+      if (n > 0.0) {
+        const double mean = sum / n;
+        ref_us = std::min(0.0, mean + std::sqrt(3.0 * std::max(sum2 / n - mean * mean, 0.0)));
+      }
+      motion->tau_s.resize(assoc.size());
+      for (std::size_t j = 0; j < assoc.size(); ++j) {
+        motion->tau_s[j] = 1e-6 * (static_cast<double>(events[assoc[j].event_index].t_us - motion->t_ref_us) - ref_us);
+      }
+    }
     if (assoc.size() < 6) {
       up.reason = fmt::format("{} events associated with the model (need >= 6)", assoc.size());
       up.T_cam_model = T_predicted;
@@ -364,7 +454,8 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
       up.associated = assoc.size();
       return up;
     }
-    const RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, sigma_n, o);
+    RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, sigma_n, o, motion);
+    last_w = std::move(rr.w);
     const double moved_px = image_motion_px(segs, T, rr.T, f);
     T = rr.T;
     sigma_n = rr.sigma_n;
@@ -384,8 +475,9 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
   // Final statistics at the final pose with the last round's association and scale.
   std::vector<LineGeometry> geom;
   std::vector<double> r, w;
+  if (motion != nullptr) motion->weights = &last_w;
   if (!T.t_cam_model_m.allFinite() || !T.q_cam_model.coeffs().allFinite() ||
-      !residuals(T, segs, assoc, near_m, true, geom, r)) {
+      !residuals(T, segs, assoc, near_m, true, geom, r, motion)) {
     up.reason = "the solve left the model's valid geometry (segment behind the camera)";
     up.T_cam_model = T_predicted;
     return up;
@@ -415,7 +507,7 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
 
   Matrix6d H;
   Vector6d g;
-  normal_equations(segs, assoc, geom, r, w, H, g);
+  normal_equations(segs, assoc, geom, r, w, H, g, motion);
   // Conditioning with translations in units of the mean depth, so that both blocks are angles.
   double depth = 0.0;
   for (const auto& s : segs) depth += 0.5 * (T.apply(s.a_m).z() + T.apply(s.b_m).z());
@@ -437,9 +529,16 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
       const ProjectedSegment& s = segs[assoc[j].segment];
       const Eigen::Vector2d d = s.b_n - s.a_n;
       const double len_px = d.norm() * f;
-      const auto n_cells = o.covariance_cell_px > 0.0
-                               ? static_cast<std::size_t>(std::ceil(std::max(len_px, 1.0) / o.covariance_cell_px))
-                               : std::size_t{1};
+      // The cell: given, one per segment (< 0), or (0) the run over which an edge's pixel quantisation is common.
+      // An edge at angle theta to a pixel axis crosses into the next pixel row (column) every 1 / |sin theta|
+      // px along itself: its events in that run share one quantisation offset (uniform within the pixel).
+      const double run_px =
+          o.covariance_cell_px != 0.0
+              ? o.covariance_cell_px
+              : std::max(d.norm(), 1e-30) / std::max(std::min(std::abs(d.x()), std::abs(d.y())), 1e-30);
+      const auto n_cells = run_px > 0.0 ? static_cast<std::size_t>(std::clamp(std::ceil(std::max(len_px, 1.0) / run_px),
+                                                                              1.0, std::max(len_px, 1.0)))
+                                        : std::size_t{1};
       auto& occ = occupied[assoc[j].segment];
       if (occ.size() != n_cells) occ.assign(n_cells, false);
       const double t = std::clamp((assoc[j].p_n - s.a_n).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
@@ -543,9 +642,16 @@ TrackUpdate track_window(EventSpan events, const UndistortMap& map, const camera
   }
   GatheredEvents gathered;
   gather_events(events, map, gathered);
-  up = track_from(events, gathered, map, model, T_predicted, T_predicted, o);
+  // Segment motions are measured from the pose's time: the hint's, else the middle of the events' span.
+  std::optional<SegmentMotion> seg_motion;
+  if (o.segment_motion) {
+    seg_motion.emplace();
+    seg_motion->t_ref_us = motion ? motion->t_us : events.front().t_us + (events.back().t_us - events.front().t_us) / 2;
+  }
+  SegmentMotion* const c = seg_motion ? &*seg_motion : nullptr;
+  up = track_from(events, gathered, map, model, T_predicted, T_predicted, o, c);
   const auto try_start = [&](const camera::Pose& start) {
-    TrackUpdate alt = track_from(events, gathered, map, model, T_predicted, start, o);
+    TrackUpdate alt = track_from(events, gathered, map, model, T_predicted, start, o, c);
     if (better(alt, up)) up = std::move(alt);
   };
   for (int k = 1; o.recovery_roll_deg > 0.0 && k <= o.recovery_roll_steps; ++k) {

@@ -57,6 +57,11 @@ struct TrackerOptions {
   double gate_shrink = 0.5;
   double gate_sigma_factor = 4.0;
   double gate_min_px = 2.5;
+  /// Fit each seen segment's own normal motion over the window (beta_k tau, tau = event time - the pose's time) with
+  /// the pose and take it out of its events' residuals: a moving edge's events then lie on its line at the pose's
+  /// time instead of in a band v × window wide, and structure moving otherwise beside it (another depth, another
+  /// object) no longer averages into the line. Off: one line per segment for the whole window (the paper).
+  bool segment_motion = true;
 
   // --- Robust estimation (paper eqs. 40-44).
   /// Tukey c of the S-scale step. Its b is not an option: b = E_Phi[rho_c_s] (robust_loss.hpp), 0.19950 at 1.547.
@@ -88,11 +93,13 @@ struct TrackerOptions {
   bool verify = true;
   VerifyOptions verification;
 
-  // --- Covariance. The events of one edge are not independent measurements: an edge's offset, blur, timing and
-  // model error move all of them together. sigma^2 (J^T W J)^-1 counts every event; the covariance is scaled by
-  // inliers / independent measurements, one per occupied cell of covariance_cell_px along each segment, or with
-  // 0 one per seen segment (the default: the per-segment count gives mean NEES 6.8 on the seeded roadheader
-  // scenes of tests/pose/test_verification.cpp, per 4 px cell 71, per event far more).
+  // --- Covariance. The events of one edge are not independent measurements: where an edge runs nearly along a pixel
+  // row or column its events fill the same pixels and share one quantisation offset, and its blur and the model's
+  // error move them together. sigma^2 (J^T W J)^-1 counts every event; the covariance is scaled by inliers /
+  // independent measurements, one per occupied cell along each segment. 0 (default): the cell is the run over which
+  // the edge's quantisation is common, 1 / min(|sin|, |cos|) of its image angle (a 45° edge: 1.4 px; one 2° off a
+  // pixel axis: 29 px); > 0: cells of that length; < 0: one per seen segment (the default before segment_motion;
+  // measured mean NEES, docs/algorithms.md "Covariance").
   double covariance_cell_px = 0.0;
 };
 
