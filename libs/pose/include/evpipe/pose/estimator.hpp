@@ -60,6 +60,11 @@ struct EstimatorOptions {
   std::int64_t track_max_span_us = 100'000;
   double track_max_blur_px = 3.0;
   std::int64_t track_history_max_us = 1'000'000;
+  /// The speed that bounds a history's span is measured between the last tracked pose and the oldest one of the
+  /// same run of tracking updates within this baseline: a slow target's pose jitter between two consecutive windows
+  /// reads as speed (0.3 px of jitter over a 30 ms step is 10 px/s, a 0.3 s span where the target moves 2 px/s);
+  /// over a longer baseline the jitter's share falls with it. 0: the last two poses.
+  std::int64_t speed_baseline_us = 300'000;
   /// ... but only when the window has at least this many events of its own (a window without the target is
   /// not tracked on the target's past events).
   std::size_t track_min_window_events = 10;
@@ -242,8 +247,11 @@ class PoseEstimator {
     bool lost{false};         ///< lost_after_windows unhealthy updates in a row
     TrackUpdate last_update;  ///< the update that measured `last` (its covariance is the held pose's)
     std::optional<TrackUpdate> previous_update;  ///< the one that measured `previous`
-    int healthy_in_a_row{0};                     ///< healthy updates in a row since the initialisation
-    bool confirmed{false};  ///< confirm_windows healthy updates in a row seen since the initialisation
+    /// The tracked poses of the current run of updates (since the last start, hold or resume), oldest first, within
+    /// speed_baseline_us of the newest: the baseline of history_span_us's speed.
+    std::vector<camera::StampedPose> trail;
+    int healthy_in_a_row{0};  ///< healthy updates in a row since the initialisation
+    bool confirmed{false};    ///< confirm_windows healthy updates in a row seen since the initialisation
     /// The background rate (events per pixel per second) an accumulated history's noise is estimated with: the
     /// estimator's last measurement (noise_rate_hz_), 0 on a worker's catch-up (the window count alone).
     double noise_rate_hz{0.0};
@@ -273,6 +281,10 @@ class PoseEstimator {
   /// The events a tracking update of `state` uses (the window, or the accumulated history: track_min_events).
   [[nodiscard]] EventSpan tracking_events(const TrackState& state, EventSpan window, std::int64_t t_us,
                                           EventSpan history) const;
+  /// The newest events of `history` that hold track_min_events of the target beyond the noise at noise_rate_hz, none
+  /// older than span_us before t_us (the window alone when it is rich enough or (almost) empty).
+  [[nodiscard]] EventSpan tracking_events(double noise_rate_hz, std::int64_t span_us, EventSpan window,
+                                          std::int64_t t_us, EventSpan history) const;
   /// The span (us) over which the model's image moves track_max_blur_px at the state's last tracked speed
   /// (track_max_span_us when unknown), at most track_history_max_us.
   [[nodiscard]] std::int64_t history_span_us(const TrackState& state) const;
