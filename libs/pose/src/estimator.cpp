@@ -164,7 +164,9 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
                          : window;
   // The longer accumulation every other attempt, and whenever the shorter one is too small to attempt at all (else
   // a target too slow to give init_min_events in init_accumulate_us never gets an attempt to alternate with).
-  const bool longer = options_.init_long_accumulate_us > 0 &&
+  // Only for an attempt that searches around a pose (the configured prior, or the last good pose after a loss):
+  // without one, the long accumulation's blur of the scene's other structure gave wrong poses (EstimatorOptions).
+  const bool longer = options_.init_long_accumulate_us > 0 && (prior_.has_value() || track_.last.has_value()) &&
                       (counters_.init_attempts % 2 == 1 || events.size() < options_.init_min_events);
   EventSpan shorter;
   if (longer) {

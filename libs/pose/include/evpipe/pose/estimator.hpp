@@ -48,7 +48,7 @@ struct EstimatorOptions {
   /// (docs/history.md, "Sparse windows and slow targets": slow valid 44 -> 63 %, wrong confident 36 -> 12) but the
   /// clutter scenes without a prior accept wrong board poses from the long accumulation (2 -> 26 wrong confident) and
   /// the standard set gains some (70 -> 116), so it is not on until initialisation refuses those.
-  std::int64_t init_long_accumulate_us = 0;
+  std::int64_t init_long_accumulate_us = 1'000'000;
   std::size_t init_long_target_events = 20'000;
   /// Tracking on a sparse window (slow target, most events filtered out, or the target's events drowned in noise)
   /// uses an accumulated history instead: the newest events holding track_min_events events of the target (the
