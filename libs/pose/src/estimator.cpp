@@ -445,6 +445,7 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
       set_status(TrackStatus::holding);
       hold_previous_t_us_ = t_end_us;
       hold_contradicted_ = 0;
+      hold_unmeasured_since_us_.reset();
       PoseEstimate held = held_pose(t_end_us, window.size());
       held.note = "holding: no motion near the model beyond the noise (" + out.note + ")";
       return held;
@@ -666,6 +667,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   noise_rate_hz_ = ev.noise_rate_hz;
   if (!window.empty()) hold_newest_counted_us_ = std::max(hold_newest_counted_us_, window.back().t_us);
   if (!ev.moving) {
+    hold_unmeasured_since_us_.reset();
     track_.unhealthy_in_a_row = 0;  // "in a row": a window without motion ends a run of unmeasurable ones
     hold_contradicted_ = ev.unexplained ? hold_contradicted_ + 1 : 0;
     if (hold_contradicted_ < options_.hold_contradicted_windows) {
@@ -732,15 +734,30 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
     out.status = status_;
     return out;
   }
-  // It moves, but no pose can be measured: not held (a held pose must not become a wrong one), unhealthy.
+  // It moves, but no pose can be measured.
+  const std::string why = jumped ? std::string("the update jumped") : u.reason;
+  if (!jumped && ev.implied_motion_px <= options_.standstill.max_motion_px) {
+    // A significant excess worth a measurement (min_motion_events), but less motion than a hold tolerates: held.
+    PoseEstimate kept = held_pose(t_end_us, window.size());
+    kept.note =
+        fmt::format("holding: motion near the model (~{:.1f} px) too small to measure: {}", ev.implied_motion_px, why);
+    return kept;
+  }
+  // Not held (a held pose must not become a wrong one). Unhealthy towards a loss only once the motion since the held
+  // pose may exceed what a tracking history's blur allows (track_max_blur_px), or has stayed unmeasured for
+  // track_history_max_us: until then a target starting slowly is measured as soon as its events suffice (the
+  // retry above spans everything since the held pose).
   ++counters_.unhealthy_updates;
-  ++track_.unhealthy_in_a_row;
+  if (!hold_unmeasured_since_us_) hold_unmeasured_since_us_ = t_end_us;
+  const bool counts = jumped || ev.implied_motion_px > options_.track_max_blur_px ||
+                      t_end_us - *hold_unmeasured_since_us_ >= options_.track_history_max_us;
+  if (counts) ++track_.unhealthy_in_a_row;
   out.T_cam_model = held;
   out.t_last_update_us = track_.last->t_us;
   out.inliers = u.inliers;
   out.sigma_px = u.sigma_px;
   out.note = fmt::format("holding ended: motion near the model (~{:.1f} px) that tracking cannot measure: {}",
-                         ev.implied_motion_px, jumped ? std::string("the update jumped") : u.reason);
+                         ev.implied_motion_px, why);
   if (track_.unhealthy_in_a_row >= options_.lost_after_windows) {
     track_.lost = true;
     set_status(TrackStatus::lost);

@@ -321,8 +321,10 @@ class PoseEstimator {
   StandstillMonitor standstill_;              ///< active while holding
   StandstillMonitor probe_;                   ///< signal_near's scratch
   std::int64_t hold_previous_t_us_{0};        ///< the previous window's time while holding
-  int hold_contradicted_{0};                  ///< windows in a row with unexplained activity while holding
-  std::int64_t hold_newest_counted_us_{0};    ///< newest event counted into the hold's totals
+  int hold_contradicted_{0};
+  /// While holding: the first window of the current run of motion that tracking could not measure.
+  std::optional<std::int64_t> hold_unmeasured_since_us_;  ///< windows in a row with unexplained activity while holding
+  std::int64_t hold_newest_counted_us_{0};                ///< newest event counted into the hold's totals
   /// Background activity near the model (events per pixel per second), measured by the last support test
   /// (signal_near) or hold window: what the noise explains of an accumulated history's events.
   double noise_rate_hz_{0.0};
