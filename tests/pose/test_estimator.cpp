@@ -541,7 +541,7 @@ TEST(PoseEstimator, TracksASlowTargetUnderNoise) {
 // in the image, a few dozen events per 30 ms window. Before: 300 ms accumulations showed LSD no line for most of the
 // 3 s, and once tracked the hold's motion test fired on every few windows whose own events could not measure the
 // creep, three in a row were a loss (15 % valid). Now: the long accumulation (with the prior) initialises, the speed
-// that bounds a tracking history is measured over 300 ms (not the jitter of two consecutive poses), and a hold's
+// that bounds a tracking history is measured over 100 ms (not the jitter of two consecutive poses), and a hold's
 // motion is measured on the events since the held pose. Every published pose must be right.
 TEST(PoseEstimator, TracksACrawlingTarget) {
   const auto cfg = evpipe::testing::source_dir() / "config";

@@ -39,6 +39,8 @@ void EstimatorOptions::validate() const {
         fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
                     "got {} / {}",
                     s.significance, s.max_motion_px));
+  if (speed_baseline_us < 0)
+    throw std::invalid_argument(fmt::format("pose.speed_baseline_us: must be >= 0, got {}", speed_baseline_us));
   if (!(track_max_blur_px > 0.0) || track_max_span_us < 0 || track_history_max_us < 0 || unverified_max_us < 0)
     throw std::invalid_argument(
         fmt::format("pose.track_max_blur_px must be > 0 and track_max_span_us / track_history_max_us / "

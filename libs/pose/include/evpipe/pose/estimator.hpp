@@ -44,10 +44,9 @@ struct EstimatorOptions {
   std::size_t init_target_events = 4000;
   /// > 0: every other attempt (and every attempt whose init_accumulate_us holds fewer than init_min_events) uses the
   /// newest init_long_target_events of the last init_long_accumulate_us instead (a slow target's edges move too
-  /// little in 300 ms for LSD: no line at 0.01-0.02 m/s). Off by default: with 1'000'000 the slow scenes initialise
-  /// (docs/history.md, "Sparse windows and slow targets": slow valid 44 -> 63 %, wrong confident 36 -> 12) but the
-  /// clutter scenes without a prior accept wrong board poses from the long accumulation (2 -> 26 wrong confident) and
-  /// the standard set gains some (70 -> 116), so it is not on until initialisation refuses those.
+  /// little in 300 ms for LSD: no line at 0.01-0.02 m/s). Only attempts that search around a pose (the configured
+  /// prior, or the last good pose after a loss) use it: without one, the clutter scenes accepted wrong board poses
+  /// from the long accumulation (docs/history.md, "Sparse windows and slow targets": clutter wrong confident 2 -> 26).
   std::int64_t init_long_accumulate_us = 1'000'000;
   std::size_t init_long_target_events = 20'000;
   /// Tracking on a sparse window (slow target, most events filtered out, or the target's events drowned in noise)
@@ -62,9 +61,10 @@ struct EstimatorOptions {
   std::int64_t track_history_max_us = 1'000'000;
   /// The speed that bounds a history's span is measured between the last tracked pose and the oldest one of the
   /// same run of tracking updates within this baseline: a slow target's pose jitter between two consecutive windows
-  /// reads as speed (0.3 px of jitter over a 30 ms step is 10 px/s, a 0.3 s span where the target moves 2 px/s);
-  /// over a longer baseline the jitter's share falls with it. 0: the last two poses.
-  std::int64_t speed_baseline_us = 300'000;
+  /// reads as speed (0.3 px of jitter over a 30 ms step is 10 px/s, a 0.3 s span where the target moves 2 px/s; over
+  /// 100 ms, 3 px/s). Longer baselines underrate a turning target's speed (300 ms: more planar poses 2-5 deg off in
+  /// the clutter scenes). 0: the last two poses.
+  std::int64_t speed_baseline_us = 100'000;
   /// ... but only when the window has at least this many events of its own (a window without the target is
   /// not tracked on the target's past events).
   std::size_t track_min_window_events = 10;
