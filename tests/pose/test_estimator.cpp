@@ -467,17 +467,21 @@ TEST(PoseEstimator, HoldsAStillTargetAndResumesWithoutReinitialising) {
 
 // The same at 5 Hz/px raw: ~13 500 noise events per 30 ms window against ~1 500 of the target's; tracking then
 // accumulates the newest events holding track_min_events of the target beyond what the measured noise rate explains
-// (EstimatorOptions::track_max_blur_px). A guard, not a proof of the fix: this seed held before it too, and seeds
-// 1, 2 and 4 of this scene still lose the track before the stop (inconclusive verifications in a row; issue 21 open).
+// (EstimatorOptions::track_max_blur_px). Seed 1 lost the track when the target started again (the window alone could
+// not measure the restart, three windows in a row): the hold now retries on the events since the held pose and counts
+// unmeasurable motion towards a loss only beyond track_max_blur_px. Seeds 2 and 4 of this scene still lose the track
+// while it moves (inconclusive verifications in a row; issue 21 open).
 TEST(PoseEstimator, HoldsAStillTargetUnderHeavyNoise) {
   holds_a_still_target(5.0, 20261126);
+  holds_a_still_target(5.0, 1);
 }
 
 // Slow motion (issue 21): the roadheader at 1 m drifting at most 0.04 m/s and 6 deg/s under 1 Hz/px of raw noise. A
 // 30 ms window then holds ~2 700 noise events and a few hundred of the target's: before, no attempt of 300 ms found
 // 4 lines and nothing was published for the whole 3 s. The longer initialisation accumulation (the newest 20 000 of
-// up to 1 s, init_long_accumulate_us, off by default, on here; its poses verified) starts the track and tracking
-// accumulates the target's events (track_min_events beyond the measured noise); every published pose must be right.
+// up to 1 s, init_long_accumulate_us, on by default for attempts with a prior; its poses verified) starts the track
+// and tracking accumulates the target's events (track_min_events beyond the measured noise); every published pose
+// must be right.
 TEST(PoseEstimator, TracksASlowTargetUnderNoise) {
   const std::uint64_t seed = 2202;
   const auto cfg = evpipe::testing::source_dir() / "config";
@@ -503,9 +507,7 @@ TEST(PoseEstimator, TracksASlowTargetUnderNoise) {
   camera::PosePrior prior;
   prior.pose = sim::perturb_pose(scene.trajectory.front().pose, 0.05, 10.0, rng);
 
-  pose::EstimatorOptions o;
-  o.init_long_accumulate_us = 1'000'000;  // off by default (clutter without a prior: docs/history.md)
-  pose::PoseEstimator est(scene.camera, scene.model, prior, o);
+  pose::PoseEstimator est(scene.camera, scene.model, prior);
   const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
   int windows_after_first = 0, valid = 0;
   double worst_mm = 0.0, worst_deg = 0.0;
@@ -528,11 +530,88 @@ TEST(PoseEstimator, TracksASlowTargetUnderNoise) {
             << " windows valid from there, worst " << worst_mm << " mm / " << worst_deg << " deg\n";
   ASSERT_GE(first_us, 0) << "never initialised";
   EXPECT_LT(first_us, 1'500'000);
-  // Measured: first pose at 0.1 s, 62 of 97 windows valid after it (before: never initialised). The issue's 99 % is
+  // Measured: first pose at 1.1 s, 57 of 64 windows valid after it (before: never initialised). The issue's 99 % is
   // not met: the rest are windows whose verification is inconclusive (unverified, not published).
-  EXPECT_GE(valid, windows_after_first / 2);
+  EXPECT_GE(valid, windows_after_first * 3 / 4);
   EXPECT_LT(worst_mm, 20.0);  // never a confident wrong pose
   EXPECT_LT(worst_deg, 2.0);
+}
+
+// A crawling target (issue 21): the planar target at 0.8 m moving at most 0.01 m/s and 1.5 deg/s, no noise: ~2 px/s
+// in the image, a few dozen events per 30 ms window. Before: 300 ms accumulations showed LSD no line for most of the
+// 3 s, and once tracked the hold's motion test fired on every few windows whose own events could not measure the
+// creep, three in a row were a loss (15 % valid). Now: the long accumulation (with the prior) initialises, the speed
+// that bounds a tracking history is measured over 100 ms (not the jitter of two consecutive poses), and a hold's
+// motion is measured on the events since the held pose. Every published pose must be right.
+TEST(PoseEstimator, TracksACrawlingTarget) {
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  sim::TargetScene scene;
+  scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+  scene.model = camera::load_line_model((cfg / "target-planar.yaml").string());
+  sim::MotionOptions mo;
+  mo.base = sim::facing_pose(scene.model, 0.8, sim::default_view(scene.model));
+  mo.pivot_model_m = sim::bbox_centre(scene.model);
+  mo.max_speed_m_s = 0.01;
+  mo.max_angular_speed_deg_s = 1.5;
+  const std::int64_t duration_us = 3'000'000;
+  std::mt19937_64 rng(2201);
+  scene.trajectory = sim::generate_motion(0, duration_us, mo, rng);
+  const std::vector<Event> events = sim::render_target(scene, 0, duration_us, rng);
+  camera::PosePrior prior;
+  prior.pose = sim::perturb_pose(scene.trajectory.front().pose, 0.05, 10.0, rng);
+
+  pose::PoseEstimator est(scene.camera, scene.model, prior);
+  const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
+  int windows = 0, valid = 0;
+  double worst_mm = 0.0, worst_deg = 0.0;
+  for (std::int64_t t0 = 0; t0 + kWindow_us <= duration_us; t0 += kWindow_us) {
+    const auto lo = std::lower_bound(events.begin(), events.end(), t0, before);
+    const auto hi = std::lower_bound(lo, events.end(), t0 + kWindow_us, before);
+    const std::int64_t t_mid = t0 + kWindow_us / 2;
+    const auto out = est.process(EventSpan(lo, hi), t_mid);
+    ++windows;
+    if (!out.pose_valid) continue;
+    ++valid;
+    const auto truth = *camera::interpolate(scene.trajectory, t_mid);
+    worst_mm = std::max(worst_mm, 1000.0 * camera::translation_distance_m(out.T_cam_model, truth));
+    worst_deg = std::max(worst_deg, camera::rotation_angle_deg(out.T_cam_model, truth));
+  }
+  std::cout << valid << " of " << windows << " windows valid, worst " << worst_mm << " mm / " << worst_deg << " deg; "
+            << est.counters().init_successes << " initialisations\n";
+  EXPECT_GE(valid, windows * 3 / 4);  // measured 82 of 100 (before: 15)
+  EXPECT_LT(worst_mm, 20.0);          // never a confident wrong pose
+  EXPECT_LT(worst_deg, 2.0);
+}
+
+// The long initialisation accumulation is used only by attempts that search around a pose: without a prior it blurred
+// the scene's other structure into wrong poses (docs/algorithms.md, "Slow motion"). A sparse scene: with the prior
+// some attempt's events reach back beyond init_accumulate_us, without it none does.
+TEST(PoseEstimator, TheLongInitialisationAccumulationNeedsAPoseToSearchAround) {
+  const Scene s("target-planar.yaml", 0.8, 7, 1'500'000, 0.1);
+  for (const bool with_prior : {true, false}) {
+    SCOPED_TRACE(with_prior ? "with the prior" : "without a prior");
+    pose::PoseEstimator est(s.scene.camera, s.scene.model,
+                            with_prior ? std::optional<camera::PosePrior>(s.prior) : std::nullopt);
+    const pose::EstimatorOptions o;
+    std::int64_t longest_us = 0;
+    for (std::int64_t t0 = 0; t0 + kWindow_us <= 1'500'000; t0 += kWindow_us) {
+      pose::PoseEstimate now;
+      const std::int64_t t_mid = t0 + kWindow_us / 2;
+      const auto job = est.prepare_initialisation(s.window(t0, t0 + kWindow_us), t_mid, now);
+      if (!job || job->events.empty()) continue;
+      longest_us = std::max(longest_us, t_mid - job->events.front().t_us);
+      // Not run: every window prepares a new attempt.
+      pose::InitOutcome failed;
+      failed.t_us = t_mid;
+      failed.generation = job->generation;
+      (void)est.complete_initialisation(failed, EventSpan{}, t_mid);
+    }
+    if (with_prior) {
+      EXPECT_GT(longest_us, o.init_accumulate_us);
+    } else {
+      EXPECT_LE(longest_us, o.init_accumulate_us);
+    }
+  }
 }
 
 // A pose found on accumulated events (a sparse window: init_accumulate_us of the target's motion) is a blur of that

@@ -39,6 +39,8 @@ void EstimatorOptions::validate() const {
         fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
                     "got {} / {}",
                     s.significance, s.max_motion_px));
+  if (speed_baseline_us < 0)
+    throw std::invalid_argument(fmt::format("pose.speed_baseline_us: must be >= 0, got {}", speed_baseline_us));
   if (!(track_max_blur_px > 0.0) || track_max_span_us < 0 || track_history_max_us < 0 || unverified_max_us < 0)
     throw std::invalid_argument(
         fmt::format("pose.track_max_blur_px must be > 0 and track_max_span_us / track_history_max_us / "
@@ -164,7 +166,9 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
                          : window;
   // The longer accumulation every other attempt, and whenever the shorter one is too small to attempt at all (else
   // a target too slow to give init_min_events in init_accumulate_us never gets an attempt to alternate with).
-  const bool longer = options_.init_long_accumulate_us > 0 &&
+  // Only for an attempt that searches around a pose (the configured prior, or the last good pose after a loss):
+  // without one, the long accumulation's blur of the scene's other structure gave wrong poses (EstimatorOptions).
+  const bool longer = options_.init_long_accumulate_us > 0 && (prior_.has_value() || track_.last.has_value()) &&
                       (counters_.init_attempts % 2 == 1 || events.size() < options_.init_min_events);
   EventSpan shorter;
   if (longer) {
@@ -325,8 +329,17 @@ void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
 
 std::int64_t PoseEstimator::history_span_us(const TrackState& state) const {
   if (!state.previous || !state.last || state.last->t_us <= state.previous->t_us) return options_.track_max_span_us;
-  const double px_per_us = image_motion_px(state.previous->pose, state.last->pose) /
-                           static_cast<double>(state.last->t_us - state.previous->t_us);
+  // The speed over the longest baseline of the run (speed_baseline_us): the oldest trail pose within it, at least the
+  // previous pose.
+  const camera::StampedPose* from = &*state.previous;
+  for (const camera::StampedPose& p : state.trail) {
+    if (p.t_us < from->t_us && state.last->t_us - p.t_us <= options_.speed_baseline_us) {
+      from = &p;
+      break;
+    }
+  }
+  const double px_per_us =
+      image_motion_px(from->pose, state.last->pose) / static_cast<double>(state.last->t_us - from->t_us);
   const double span_us =
       px_per_us > 0.0 ? options_.track_max_blur_px / px_per_us : static_cast<double>(options_.track_history_max_us);
   return std::clamp(static_cast<std::int64_t>(std::min(span_us, 1e15)),
@@ -335,17 +348,22 @@ std::int64_t PoseEstimator::history_span_us(const TrackState& state) const {
 
 EventSpan PoseEstimator::tracking_events(const TrackState& state, EventSpan window, std::int64_t t_us,
                                          EventSpan history) const {
+  return tracking_events(state.noise_rate_hz, history_span_us(state), window, t_us, history);
+}
+
+EventSpan PoseEstimator::tracking_events(double noise_rate_hz, std::int64_t span_us, EventSpan window,
+                                         std::int64_t t_us, EventSpan history) const {
   // An (almost) empty window alone: the target has gone, old events must not hide that.
   if (window.size() < options_.track_min_window_events || history.empty()) return window;
   // The target's events in a span: the count minus what the measured background rate explains over the sensor.
   const double noise_per_us =
-      state.noise_rate_hz * 1e-6 * static_cast<double>(camera_.width) * static_cast<double>(camera_.height);
+      noise_rate_hz * 1e-6 * static_cast<double>(camera_.width) * static_cast<double>(camera_.height);
   const double window_noise = noise_per_us * static_cast<double>(std::max<std::int64_t>(options_.track.window_us, 1));
   const auto target = static_cast<double>(options_.track_min_events);
   if (static_cast<double>(window.size()) - window_noise >= target) return window;  // a rich window alone
   // A sparse one: the newest events that hold track_min_events of the target, none older than the span over which
   // the model's image moves track_max_blur_px (history_span_us).
-  const std::int64_t oldest_us = t_us - history_span_us(state);
+  const std::int64_t oldest_us = t_us - span_us;
   const std::int64_t newest_us = history.back().t_us;
   auto first = history.end();
   std::size_t n = 0;
@@ -391,6 +409,7 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
     if (++track_.unhealthy_in_a_row >= options_.lost_after_windows) {
       track_.lost = true;
       track_.previous.reset();
+      track_.trail.clear();
     }
   }
   if (out.pose_valid && options_.hold && !signal_near(used, out.T_cam_model)) {
@@ -405,6 +424,7 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
     if (++track_.unhealthy_in_a_row >= options_.lost_after_windows) {
       track_.lost = true;
       track_.previous.reset();
+      track_.trail.clear();
     }
     const std::size_t n_used = out.window_events;
     out = held_estimate(window, t_end_us);
@@ -422,10 +442,12 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
       track_.unhealthy_in_a_row = 0;
       track_.fitted.reset();
       track_.previous.reset();  // the target is still: when it moves again, predict from rest
+      track_.trail.clear();
       ++counters_.holds;
       set_status(TrackStatus::holding);
       hold_previous_t_us_ = t_end_us;
       hold_contradicted_ = 0;
+      hold_unmeasured_since_us_.reset();
       PoseEstimate held = held_pose(t_end_us, window.size());
       held.note = "holding: no motion near the model beyond the noise (" + out.note + ")";
       return held;
@@ -485,6 +507,11 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
     if (++state.healthy_in_a_row >= options_.confirm_windows) state.confirmed = true;
     state.previous = state.last;
     state.last = camera::StampedPose{t_end_us, u.T_cam_model};
+    if (state.trail.empty() && state.previous) state.trail.push_back(*state.previous);
+    state.trail.push_back(*state.last);
+    while (state.trail.size() > 2 && t_end_us - state.trail.front().t_us > options_.speed_baseline_us) {
+      state.trail.erase(state.trail.begin());
+    }
     state.previous_update = std::move(state.last_update);
     state.last_update = u;
     publish_update(u, out);
@@ -504,6 +531,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
     if (state.unhealthy_in_a_row >= options_.lost_after_windows) {
       state.lost = true;
       state.previous.reset();
+      state.trail.clear();
     }
   }
   out.status = state.lost ? TrackStatus::lost : TrackStatus::tracking;
@@ -511,12 +539,10 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
 }
 
 PoseEstimator::TrackState PoseEstimator::start_state(const InitOutcome& outcome) {
-  TrackState state{camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model},
-                   outcome.previous,
-                   0,
-                   false,
-                   outcome.polished,
-                   std::nullopt};
+  TrackState state;
+  state.last = camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model};
+  state.previous = outcome.previous;
+  state.last_update = outcome.polished;
   // Advanced on the worker: handed over from a healthy last slice; the slices' healthy updates count (as if in a
   // row: the handover needs the last one healthy, and an unhealthy one among them is rare).
   state.healthy_in_a_row = outcome.caught_up_slices - static_cast<int>(outcome.caught_up_unhealthy);
@@ -607,6 +633,7 @@ bool PoseEstimator::try_hold(EventSpan window, std::int64_t t_end_us) {
     track_.last = track_.previous;
     track_.last_update = *track_.previous_update;
     track_.previous.reset();
+    track_.trail.clear();
   }
   if (!standstill_.start(camera_, map_, model_, track_.last->pose, options_.standstill)) return false;
   const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
@@ -642,6 +669,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   noise_rate_hz_ = ev.noise_rate_hz;
   if (!window.empty()) hold_newest_counted_us_ = std::max(hold_newest_counted_us_, window.back().t_us);
   if (!ev.moving) {
+    hold_unmeasured_since_us_.reset();
     track_.unhealthy_in_a_row = 0;  // "in a row": a window without motion ends a run of unmeasurable ones
     hold_contradicted_ = ev.unexplained ? hold_contradicted_ + 1 : 0;
     if (hold_contradicted_ < options_.hold_contradicted_windows) {
@@ -655,6 +683,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
     PoseEstimate out = held_estimate(window, t_end_us);
     track_.lost = true;
     track_.previous.reset();
+    track_.trail.clear();
     set_status(TrackStatus::lost);
     out.status = status_;
     out.note = fmt::format("lost: activity away from the held model for {} windows in a row", hold_contradicted_);
@@ -662,14 +691,27 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   }
   // Motion near the model: measure it from the held pose (zero velocity).
   const camera::Pose& held = track_.last->pose;
-  // The window alone: the motion's events are fresh, the extension to older events would add only the still
-  // period's noise (a fit on it started 30 mm off on a 10 s stop at 5 Hz/px).
-  const EventSpan events = window;
-  (void)history;
+  // The window first: the motion's events are fresh, the extension to older events adds the still period's noise (a
+  // fit on 100 ms of it started 30 mm off on a 10 s stop at 5 Hz/px).
+  EventSpan events = window;
   TrackUpdate u = track_window(events, map_, model_, held, options_.track);
   if (u.healthy && !signal_near(events, u.T_cam_model)) {
     u.healthy = false;
     u.reason = "no more events near the fitted model than the noise explains";
+  }
+  if (!u.healthy && ev.implied_motion_px <= options_.track_max_blur_px) {
+    // Too few events in the window (a slow creep, a sparse restart): the events since the held pose was measured
+    // (at most track_history_max_us), the newest that hold track_min_events of the target. The model's image moved
+    // at most about implied_motion_px over them: within the blur a tracking history allows.
+    const std::int64_t span_us = std::min(t_end_us - track_.last->t_us, options_.track_history_max_us);
+    const EventSpan longer = tracking_events(noise_rate_hz_, span_us, window, t_end_us, history);
+    if (longer.size() > window.size()) {
+      TrackUpdate v = track_window(longer, map_, model_, held, options_.track);
+      if (v.healthy && signal_near(longer, v.T_cam_model)) {
+        u = std::move(v);
+        events = longer;
+      }
+    }
   }
   // From rest, and seen first within the association gate of the held model: a measured pose whose model image
   // lies further than that gate from the held one is not this motion's onset (a fit on its few events and the
@@ -683,6 +725,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   if (u.healthy && !jumped) {
     track_.unhealthy_in_a_row = 0;
     track_.previous.reset();
+    track_.trail.clear();
     track_.fitted.reset();
     track_.last = camera::StampedPose{t_end_us, u.T_cam_model};
     track_.last_update = u;
@@ -693,15 +736,30 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
     out.status = status_;
     return out;
   }
-  // It moves, but no pose can be measured: not held (a held pose must not become a wrong one), unhealthy.
+  // It moves, but no pose can be measured.
+  const std::string why = jumped ? std::string("the update jumped") : u.reason;
+  if (!jumped && ev.implied_motion_px <= options_.standstill.max_motion_px) {
+    // A significant excess worth a measurement (min_motion_events), but less motion than a hold tolerates: held.
+    PoseEstimate kept = held_pose(t_end_us, window.size());
+    kept.note =
+        fmt::format("holding: motion near the model (~{:.1f} px) too small to measure: {}", ev.implied_motion_px, why);
+    return kept;
+  }
+  // Not held (a held pose must not become a wrong one). Unhealthy towards a loss only once the motion since the held
+  // pose may exceed what a tracking history's blur allows (track_max_blur_px), or has stayed unmeasured for
+  // track_history_max_us: until then a target starting slowly is measured as soon as its events suffice (the
+  // retry above spans everything since the held pose).
   ++counters_.unhealthy_updates;
-  ++track_.unhealthy_in_a_row;
+  if (!hold_unmeasured_since_us_) hold_unmeasured_since_us_ = t_end_us;
+  const bool counts = jumped || ev.implied_motion_px > options_.track_max_blur_px ||
+                      t_end_us - *hold_unmeasured_since_us_ >= options_.track_history_max_us;
+  if (counts) ++track_.unhealthy_in_a_row;
   out.T_cam_model = held;
   out.t_last_update_us = track_.last->t_us;
   out.inliers = u.inliers;
   out.sigma_px = u.sigma_px;
   out.note = fmt::format("holding ended: motion near the model (~{:.1f} px) that tracking cannot measure: {}",
-                         ev.implied_motion_px, jumped ? std::string("the update jumped") : u.reason);
+                         ev.implied_motion_px, why);
   if (track_.unhealthy_in_a_row >= options_.lost_after_windows) {
     track_.lost = true;
     set_status(TrackStatus::lost);

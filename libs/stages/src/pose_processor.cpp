@@ -1,6 +1,7 @@
 #include "evpipe/stages/pose_processor.hpp"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <limits>
@@ -161,6 +162,10 @@ pose::PoseEstimate PoseProcessor::process(const EventWindow& window) {
   } else if (!estimate.note.empty()) {
     summary_.last_note = estimate.note;
   }
+  // --log-level trace: every window's outcome (diagnosis: why a window carries no valid pose).
+  spdlog::trace("pose t={} {} valid={} events={} inliers={} sigma={:.2f} {}", estimate.t_us,
+                pose::to_string(estimate.status), estimate.pose_valid, estimate.window_events, estimate.inliers,
+                estimate.sigma_px, estimate.note);
   if (observer_) observer_->on_window(window, estimate);  // never waits, except for a replay's --video
   return estimate;
 }

@@ -44,11 +44,10 @@ struct EstimatorOptions {
   std::size_t init_target_events = 4000;
   /// > 0: every other attempt (and every attempt whose init_accumulate_us holds fewer than init_min_events) uses the
   /// newest init_long_target_events of the last init_long_accumulate_us instead (a slow target's edges move too
-  /// little in 300 ms for LSD: no line at 0.01-0.02 m/s). Off by default: with 1'000'000 the slow scenes initialise
-  /// (docs/history.md, "Sparse windows and slow targets": slow valid 44 -> 63 %, wrong confident 36 -> 12) but the
-  /// clutter scenes without a prior accept wrong board poses from the long accumulation (2 -> 26 wrong confident) and
-  /// the standard set gains some (70 -> 116), so it is not on until initialisation refuses those.
-  std::int64_t init_long_accumulate_us = 0;
+  /// little in 300 ms for LSD: no line at 0.01-0.02 m/s). Only attempts that search around a pose (the configured
+  /// prior, or the last good pose after a loss) use it: without one, the clutter scenes accepted wrong board poses
+  /// from the long accumulation (docs/history.md, "Sparse windows and slow targets": clutter wrong confident 2 -> 26).
+  std::int64_t init_long_accumulate_us = 1'000'000;
   std::size_t init_long_target_events = 20'000;
   /// Tracking on a sparse window (slow target, most events filtered out, or the target's events drowned in noise)
   /// uses an accumulated history instead: the newest events holding track_min_events events of the target (the
@@ -60,6 +59,12 @@ struct EstimatorOptions {
   std::int64_t track_max_span_us = 100'000;
   double track_max_blur_px = 3.0;
   std::int64_t track_history_max_us = 1'000'000;
+  /// The speed that bounds a history's span is measured between the last tracked pose and the oldest one of the
+  /// same run of tracking updates within this baseline: a slow target's pose jitter between two consecutive windows
+  /// reads as speed (0.3 px of jitter over a 30 ms step is 10 px/s, a 0.3 s span where the target moves 2 px/s; over
+  /// 100 ms, 3 px/s). Longer baselines underrate a turning target's speed (300 ms: more planar poses 2-5 deg off in
+  /// the clutter scenes). 0: the last two poses.
+  std::int64_t speed_baseline_us = 100'000;
   /// ... but only when the window has at least this many events of its own (a window without the target is
   /// not tracked on the target's past events).
   std::size_t track_min_window_events = 10;
@@ -242,8 +247,11 @@ class PoseEstimator {
     bool lost{false};         ///< lost_after_windows unhealthy updates in a row
     TrackUpdate last_update;  ///< the update that measured `last` (its covariance is the held pose's)
     std::optional<TrackUpdate> previous_update;  ///< the one that measured `previous`
-    int healthy_in_a_row{0};                     ///< healthy updates in a row since the initialisation
-    bool confirmed{false};  ///< confirm_windows healthy updates in a row seen since the initialisation
+    /// The tracked poses of the current run of updates (since the last start, hold or resume), oldest first, within
+    /// speed_baseline_us of the newest: the baseline of history_span_us's speed.
+    std::vector<camera::StampedPose> trail;
+    int healthy_in_a_row{0};  ///< healthy updates in a row since the initialisation
+    bool confirmed{false};    ///< confirm_windows healthy updates in a row seen since the initialisation
     /// The background rate (events per pixel per second) an accumulated history's noise is estimated with: the
     /// estimator's last measurement (noise_rate_hz_), 0 on a worker's catch-up (the window count alone).
     double noise_rate_hz{0.0};
@@ -273,6 +281,10 @@ class PoseEstimator {
   /// The events a tracking update of `state` uses (the window, or the accumulated history: track_min_events).
   [[nodiscard]] EventSpan tracking_events(const TrackState& state, EventSpan window, std::int64_t t_us,
                                           EventSpan history) const;
+  /// The newest events of `history` that hold track_min_events of the target beyond the noise at noise_rate_hz, none
+  /// older than span_us before t_us (the window alone when it is rich enough or (almost) empty).
+  [[nodiscard]] EventSpan tracking_events(double noise_rate_hz, std::int64_t span_us, EventSpan window,
+                                          std::int64_t t_us, EventSpan history) const;
   /// The span (us) over which the model's image moves track_max_blur_px at the state's last tracked speed
   /// (track_max_span_us when unknown), at most track_history_max_us.
   [[nodiscard]] std::int64_t history_span_us(const TrackState& state) const;
@@ -309,8 +321,10 @@ class PoseEstimator {
   StandstillMonitor standstill_;              ///< active while holding
   StandstillMonitor probe_;                   ///< signal_near's scratch
   std::int64_t hold_previous_t_us_{0};        ///< the previous window's time while holding
-  int hold_contradicted_{0};                  ///< windows in a row with unexplained activity while holding
-  std::int64_t hold_newest_counted_us_{0};    ///< newest event counted into the hold's totals
+  int hold_contradicted_{0};
+  /// While holding: the first window of the current run of motion that tracking could not measure.
+  std::optional<std::int64_t> hold_unmeasured_since_us_;  ///< windows in a row with unexplained activity while holding
+  std::int64_t hold_newest_counted_us_{0};                ///< newest event counted into the hold's totals
   /// Background activity near the model (events per pixel per second), measured by the last support test
   /// (signal_near) or hold window: what the noise explains of an accumulated history's events.
   double noise_rate_hz_{0.0};
