@@ -63,8 +63,10 @@ struct EstimatorOptions {
   /// same run of tracking updates within this baseline: a slow target's pose jitter between two consecutive windows
   /// reads as speed (0.3 px of jitter over a 30 ms step is 10 px/s, a 0.3 s span where the target moves 2 px/s; over
   /// 100 ms, 3 px/s). Longer baselines underrate a turning target's speed (300 ms: more planar poses 2-5 deg off in
-  /// the clutter scenes). 0: the last two poses.
-  std::int64_t speed_baseline_us = 100'000;
+  /// the clutter scenes). 0 (default): the last two poses. With the tracker's segment motion, 100 ms gave 3 more
+  /// wrong confident board poses (clutter lines with and without a prior, slow planar 0.04 m/s at 5 Hz/px; 2.0-2.4
+  /// deg) and no coverage the long initialisation accumulation did not already give (one run, results scenes).
+  std::int64_t speed_baseline_us = 0;
   /// ... but only when the window has at least this many events of its own (a window without the target is
   /// not tracked on the target's past events).
   std::size_t track_min_window_events = 10;
@@ -321,10 +323,10 @@ class PoseEstimator {
   StandstillMonitor standstill_;              ///< active while holding
   StandstillMonitor probe_;                   ///< signal_near's scratch
   std::int64_t hold_previous_t_us_{0};        ///< the previous window's time while holding
-  int hold_contradicted_{0};
+  int hold_contradicted_{0};                  ///< windows in a row with unexplained activity while holding
   /// While holding: the first window of the current run of motion that tracking could not measure.
-  std::optional<std::int64_t> hold_unmeasured_since_us_;  ///< windows in a row with unexplained activity while holding
-  std::int64_t hold_newest_counted_us_{0};                ///< newest event counted into the hold's totals
+  std::optional<std::int64_t> hold_unmeasured_since_us_;
+  std::int64_t hold_newest_counted_us_{0};  ///< newest event counted into the hold's totals
   /// Background activity near the model (events per pixel per second), measured by the last support test
   /// (signal_near) or hold window: what the noise explains of an accumulated history's events.
   double noise_rate_hz_{0.0};
