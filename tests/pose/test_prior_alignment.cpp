@@ -9,6 +9,7 @@
 #include <optional>
 #include <random>
 
+#include "board_error.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/pose/initialiser.hpp"
@@ -28,26 +29,7 @@ EventSpan slice(const std::vector<Event>& ev, std::int64_t t0, std::int64_t t1) 
   return {a, b};
 }
 
-double board_error(const camera::Pose& est, const camera::Pose& truth, double& deg) {
-  const Eigen::Vector3d c(0.135, 0.0945, 0.0);
-  double best_mm = 1e300;
-  deg = 1e300;
-  for (int axis = -1; axis < 3; ++axis) {
-    camera::Pose S;
-    if (axis >= 0) {
-      S.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::Unit(axis)));
-      S.t_cam_model_m = c - S.q_cam_model * c;
-    }
-    const camera::Pose equivalent = truth * S;
-    const double mm = 1000.0 * camera::translation_distance_m(est, equivalent);
-    const double d = camera::rotation_angle_deg(est, equivalent);
-    if (mm + 10.0 * d < best_mm + 10.0 * deg) {
-      best_mm = mm;
-      deg = d;
-    }
-  }
-  return best_mm;
-}
+using pose_test::board_error;
 
 // A 10 x 7 grid board of 27 mm squares (the real evbench board's model): border + 9 + 6 grid lines.
 camera::LineModel grid_board() {

@@ -8,6 +8,7 @@
 #include <optional>
 #include <random>
 
+#include "board_error.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/pose/estimator.hpp"
@@ -186,26 +187,7 @@ TEST(PoseVerify, CovarianceIsHonestOnASeededScene) {
 // locked onto it and reported tracking 270-500 mm / 24-78 deg off (pan + tilt), and without a prior it accepted
 // wrong poses on both sequences. Now no tracking pose may be more than 20 mm / 2 deg off (scored against each of
 // the board's equivalent poses), with and without the prior.
-double board_error(const camera::Pose& est, const camera::Pose& truth, double& deg) {
-  const Eigen::Vector3d c(0.135, 0.0945, 0.0);
-  double best_mm = 1e300;
-  deg = 1e300;
-  for (int axis = -1; axis < 3; ++axis) {
-    camera::Pose S;  // model -> model symmetry: identity, or 180 deg about an axis through the centre
-    if (axis >= 0) {
-      S.q_cam_model = Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::Unit(axis)));
-      S.t_cam_model_m = c - S.q_cam_model * c;
-    }
-    const camera::Pose equivalent = truth * S;
-    const double mm = 1000.0 * camera::translation_distance_m(est, equivalent);
-    const double d = camera::rotation_angle_deg(est, equivalent);
-    if (mm + 10.0 * d < best_mm + 10.0 * deg) {
-      best_mm = mm;
-      deg = d;
-    }
-  }
-  return best_mm;
-}
+using pose_test::board_error;
 
 class RealBoard : public ::testing::TestWithParam<const char*> {};
 
