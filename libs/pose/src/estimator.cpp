@@ -77,6 +77,7 @@ PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model
 void PoseEstimator::reset() {
   ++generation_;
   attempt_t_us_.reset();
+  last_published_t_us_.reset();
   recent_.clear();
   track_ = TrackState{};
   standstill_.stop();
@@ -390,6 +391,8 @@ PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
 
 PoseEstimate PoseEstimator::counted(PoseEstimate out) {
   ++counters_.windows_by_status[static_cast<int>(out.status)];
+  // A published tracking pose is the track's newest pose (an initialisation's, or an update's).
+  if (out.pose_valid && out.status == TrackStatus::tracking && track_.last) last_published_t_us_ = track_.last->t_us;
   return out;
 }
 
@@ -431,7 +434,15 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
     out.window_events = n_used;
     out.note = why;
   }
-  if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking && track_.confirmed) {
+  // A pose may be held when it was published (verified on its own window), or, an initial pose its window did not
+  // confirm (found on accumulated events), when its edges moved so slowly over them that the image cannot have moved
+  // max_motion_px since (a crawling target). A moving target whose events the denoiser deleted held its blurred
+  // accumulated pose otherwise (the paper's filter: `holding` 11-22 mm / 2.5-5 deg off).
+  const bool holdable = before.last && (last_published_t_us_ == before.last->t_us ||
+                                        before.last_update.max_edge_speed_px_s * 1e-6 *
+                                                static_cast<double>(t_end_us - before.last->t_us) <=
+                                            options_.standstill.max_motion_px);
+  if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking && track_.confirmed && holdable) {
     // Unhealthy: a still target (no events to measure it on) or a lost one? Decided on the last good pose.
     TrackState after = std::move(track_);
     track_ = before;

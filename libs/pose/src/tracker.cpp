@@ -502,6 +502,13 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
   }
   up.inlier_share = static_cast<double>(up.inliers) / static_cast<double>(events.size());
   up.sigma_px = sigma_cov * f;
+  if (motion != nullptr && motion->beta.size() == segs.size()) {
+    for (std::size_t k = 0; k < segs.size(); ++k) {
+      if (inliers_per_seg[k] >= o.min_line_inliers) {
+        up.max_edge_speed_px_s = std::max(up.max_edge_speed_px_s, std::abs(motion->beta[k]) * f);
+      }
+    }
+  }
   const bool directions =
       two_directions(segs, inliers_per_seg, o.min_line_inliers, o.min_direction_angle_deg, &up.lines_seen);
 

@@ -319,11 +319,12 @@ class PoseEstimator {
   TrackState track_;
   std::vector<Event> recent_;  ///< the newest events (init_accumulate_us, at most a few thousand)
   std::uint64_t generation_{0};
-  std::optional<std::int64_t> attempt_t_us_;  ///< an attempt prepared and not completed: its window's time
-  StandstillMonitor standstill_;              ///< active while holding
-  StandstillMonitor probe_;                   ///< signal_near's scratch
-  std::int64_t hold_previous_t_us_{0};        ///< the previous window's time while holding
-  int hold_contradicted_{0};                  ///< windows in a row with unexplained activity while holding
+  std::optional<std::int64_t> attempt_t_us_;         ///< an attempt prepared and not completed: its window's time
+  StandstillMonitor standstill_;                     ///< active while holding
+  StandstillMonitor probe_;                          ///< signal_near's scratch
+  std::int64_t hold_previous_t_us_{0};               ///< the previous window's time while holding
+  std::optional<std::int64_t> last_published_t_us_;  ///< time of the track's last pose published as tracking
+  int hold_contradicted_{0};                         ///< windows in a row with unexplained activity while holding
   /// While holding: the first window of the current run of motion that tracking could not measure.
   std::optional<std::int64_t> hold_unmeasured_since_us_;
   std::int64_t hold_newest_counted_us_{0};  ///< newest event counted into the hold's totals

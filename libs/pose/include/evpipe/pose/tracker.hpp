@@ -107,7 +107,9 @@ struct TrackUpdate {
   camera::Pose T_cam_model;
   Covariance6 covariance{Covariance6::Zero()};
   bool covariance_known{false};
-  double sigma_px{0.0};       ///< robust (S) scale of the event-to-line distances, pixels
+  double sigma_px{0.0};  ///< robust (S) scale of the event-to-line distances, pixels
+  /// segment_motion: the fastest normal speed of a seen segment's edge over the events (pixels per second).
+  double max_edge_speed_px_s{0.0};
   std::size_t associated{0};  ///< events associated with a projected segment
   std::size_t inliers{0};     ///< associated events with non-zero final weight
   double inlier_share{0.0};   ///< inliers / events in the window
