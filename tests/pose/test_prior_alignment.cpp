@@ -9,7 +9,7 @@
 #include <optional>
 #include <random>
 
-#include "board_error.hpp"
+#include "evbench_board.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/pose/initialiser.hpp"
@@ -31,21 +31,8 @@ EventSpan slice(const std::vector<Event>& ev, std::int64_t t0, std::int64_t t1) 
 
 using pose_test::board_error;
 
-// A 10 x 7 grid board of 27 mm squares (the real evbench board's model): border + 9 + 6 grid lines.
 camera::LineModel grid_board() {
-  camera::LineModel m;
-  m.name = "board";
-  const double W = 0.270, H = 0.189, s = 0.027;
-  const auto add = [&](double x0, double y0, double x1, double y1) {
-    m.segments_m.push_back({Eigen::Vector3d(x0, y0, 0), Eigen::Vector3d(x1, y1, 0)});
-  };
-  add(0, 0, W, 0);
-  add(W, 0, W, H);
-  add(W, H, 0, H);
-  add(0, H, 0, 0);
-  for (int i = 1; i < 10; ++i) add(i * s, 0, i * s, H);
-  for (int j = 1; j < 7; ++j) add(0, j * s, W, j * s);
-  return m;
+  return pose_test::evbench_board(true);
 }
 
 // The board seen small (DAVIS346 at 1.2 m: grid lines a few pixels apart, as the real DAVIS240 board), moving by

@@ -8,7 +8,7 @@
 #include <optional>
 #include <random>
 
-#include "board_error.hpp"
+#include "evbench_board.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/pose/estimator.hpp"
@@ -56,23 +56,9 @@ struct Scene {
 
 }  // namespace
 
-// A 10 x 7 grid board (the real sequence's model): border + 9 + 6 grid lines, 27 mm squares.
+// The real sequence's model (evbench_board.hpp), with or without its grid lines.
 camera::LineModel board(bool with_grid) {
-  camera::LineModel m;
-  m.name = with_grid ? "board" : "outline";
-  const double W = 0.270, H = 0.189, s = 0.027;
-  const auto add = [&](double x0, double y0, double x1, double y1) {
-    m.segments_m.push_back({Eigen::Vector3d(x0, y0, 0), Eigen::Vector3d(x1, y1, 0)});
-  };
-  add(0, 0, W, 0);
-  add(W, 0, W, H);
-  add(W, H, 0, H);
-  add(0, H, 0, 0);
-  if (with_grid) {
-    for (int i = 1; i < 10; ++i) add(i * s, 0, i * s, H);
-    for (int j = 1; j < 7; ++j) add(0, j * s, W, j * s);
-  }
-  return m;
+  return pose_test::evbench_board(with_grid);
 }
 
 // A board seen from 0.5 m moving on a seeded smooth trajectory; events rendered from `rendered`.
