@@ -46,8 +46,10 @@ void EstimatorOptions::validate() const {
         fmt::format("pose.track_max_blur_px must be > 0 and track_max_span_us / track_history_max_us / "
                     "unverified_max_us >= 0, got {} / {} / {} / {}",
                     track_max_blur_px, track_max_span_us, track_history_max_us, unverified_max_us));
-  if (confirm_windows < 0)
-    throw std::invalid_argument(fmt::format("pose.confirm_windows: must be >= 0, got {}", confirm_windows));
+  if (confirm_windows < 0 || confirm_windows_without_prior < 0)
+    throw std::invalid_argument(
+        fmt::format("pose.confirm_windows / confirm_windows_without_prior: must be >= 0, got {} / {}", confirm_windows,
+                    confirm_windows_without_prior));
   if (!(hold_entry_max_motion_px >= 0.0) || hold_contradicted_windows < 1)
     throw std::invalid_argument(
         fmt::format("pose hold: hold_entry_max_motion_px must be >= 0 and hold_contradicted_windows >= 1, got {} / {}",
@@ -213,6 +215,8 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   out.t_us = job.t_us;
   out.generation = job.generation;
   InitResult init = initialise_pose(job.events, camera_, model_, job.search, options_.init);
+  // Without a configured prior every search is one (a re-initialisation searches around a pose found without one).
+  out.without_prior = !prior_;
   if (!init.ok && job.fallback) init = initialise_pose(job.events, camera_, model_, job.fallback, options_.init);
   if (!init.ok) {
     out.note = "initialisation: " + init.message;
@@ -266,7 +270,11 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
     out.pose_valid = false;  // tracking from here, but this window did not measure the pose (InitOutcome)
     out.note = outcome.note;
   }
-  track_.confirmed = track_.healthy_in_a_row >= options_.confirm_windows;
+  track_.confirm_needed = outcome.without_prior
+                              ? std::max(options_.confirm_windows, options_.confirm_windows_without_prior)
+                              : options_.confirm_windows;
+  track_.confirm_min_coverage = outcome.without_prior ? options_.confirm_min_coverage_without_prior : 0.0;
+  track_.confirmed = track_.healthy_in_a_row >= track_.confirm_needed && track_.confirm_min_coverage <= 0.0;
   unconfirmed(out);
   return out;
 }
@@ -476,7 +484,7 @@ void PoseEstimator::unconfirmed(PoseEstimate& out) const {
   if (!out.pose_valid || out.status != TrackStatus::tracking || track_.confirmed) return;
   out.pose_valid = false;
   out.note = fmt::format("initialised: {} of {} healthy updates in a row before the track is published",
-                         track_.healthy_in_a_row, options_.confirm_windows);
+                         track_.healthy_in_a_row, track_.confirm_needed);
 }
 
 PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std::int64_t t_end_us, EventSpan history,
@@ -515,7 +523,24 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
   } else if (u.healthy && !jumped) {
     state.fitted.reset();
     state.unhealthy_in_a_row = 0;
-    if (++state.healthy_in_a_row >= options_.confirm_windows) state.confirmed = true;
+    if (!state.confirmed) {
+      state.confirm_supported += static_cast<double>(u.verification.cells_supported);
+      state.confirm_expected += u.verification.cells_expected;
+    }
+    if (++state.healthy_in_a_row >= state.confirm_needed && !state.confirmed) {
+      state.confirmed = state.confirm_supported >= state.confirm_min_coverage * state.confirm_expected;
+      if (!state.confirmed) {
+        // Healthy window by window, but together short of what the model's edges should show: a partial match.
+        state.lost = true;
+        state.previous.reset();
+        state.trail.clear();
+        out.note = fmt::format(
+            "tracking: the first {} updates show {:.0f} % of the cells the model's edges should (need {:.0f} %): "
+            "not confirmed, initialising again",
+            state.healthy_in_a_row, 100.0 * state.confirm_supported / std::max(state.confirm_expected, 1e-9),
+            100.0 * state.confirm_min_coverage);
+      }
+    }
     state.previous = state.last;
     state.last = camera::StampedPose{t_end_us, u.T_cam_model};
     if (state.trail.empty() && state.previous) state.trail.push_back(*state.previous);
@@ -544,6 +569,15 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
       state.previous.reset();
       state.trail.clear();
     }
+  }
+  if (state.lost) out.pose_valid = false;  // (an update that ended an unconfirmed track)
+  if (!state.confirmed && !state.lost && !(u.healthy && !jumped)) {
+    // Not confirmed yet (confirm_windows, confirm_windows_without_prior): an initial pose whose next updates do not
+    // all verify is not tracked on; the search starts again.
+    state.lost = true;
+    state.previous.reset();
+    state.trail.clear();
+    out.note += " (the track was not confirmed: initialising again)";
   }
   out.status = state.lost ? TrackStatus::lost : TrackStatus::tracking;
   return out;

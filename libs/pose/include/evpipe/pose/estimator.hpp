@@ -107,6 +107,19 @@ struct EstimatorOptions {
   /// (seen: 36 mm / 15 deg on a decoy, 20 mm / 6 deg on the roadheader without a prior, planar poses 2-5 deg off
   /// from 300 ms accumulations), and they are not published. 0: the initial pose itself is published.
   int confirm_windows = 0;
+  /// The same without a configured prior (every initialisation then searches the whole view, or around a pose found
+  /// that way): at least this many. The initial pose's verification has no motion to say which segments must show
+  /// support (every one is required, half of them and of their expected cells suffice); the updates after it have
+  /// the pose before them. Clutter beside the target let wrong initial poses (the board 170-180 deg / 0.3-0.5 m
+  /// off) pass alone and fail at the next windows. An unconfirmed track whose update is not healthy is dropped (the
+  /// search starts again), so the confirmation is that many healthy updates in a row right after the initialisation.
+  int confirm_windows_without_prior = 3;
+  /// ... and those updates together must show this share of the cells their edges should show
+  /// (VerifyResult::cells_supported / cells_expected summed), else the track is dropped. A pose that lays part of
+  /// the model on other structure shows about half of them, window after window, and passes the single window's
+  /// test (min_coverage 0.5) now and then; a true pose shows most of them (measured 0.8-0.95 on the synthetic sets).
+  /// The threshold is the middle between the two, two thirds.
+  double confirm_min_coverage_without_prior = 2.0 / 3.0;
   /// Compare every initial and tracked pose with the pose turned by the model's partial symmetries
   /// (model_symmetries(), filled into init.verification / track.verification when they list none): a pose whose
   /// symmetric alternative explains the window better is refused, and without a prior an initial pose whose
@@ -160,7 +173,8 @@ struct InitOutcome {
   /// false: the fresh events did not give a healthy polish; the track starts from the accumulation's pose, but this
   /// window's pose is not published as valid (it is a blur of the motion over the accumulation's span).
   bool measured_at_t{true};
-  std::string note;  ///< why not ok
+  bool without_prior{false};  ///< found with no pose to search around (EstimatorOptions::confirm_windows_without_prior)
+  std::string note;           ///< why not ok
   std::uint64_t generation{0};
   /// Set by advance_initialisation(): the track was carried on the worker over the windows that passed during
   /// the attempt; t_us and polished are then those of the last slice tracked, `previous` the pose before it.
@@ -253,7 +267,11 @@ class PoseEstimator {
     /// speed_baseline_us of the newest: the baseline of history_span_us's speed.
     std::vector<camera::StampedPose> trail;
     int healthy_in_a_row{0};  ///< healthy updates in a row since the initialisation
-    bool confirmed{false};    ///< confirm_windows healthy updates in a row seen since the initialisation
+    bool confirmed{false};    ///< confirm_needed healthy updates in a row seen since the initialisation
+    int confirm_needed{0};    ///< confirm_windows, or confirm_windows_without_prior for a track found without one
+    double confirm_min_coverage{0.0};  ///< confirm_min_coverage_without_prior for a track found without a prior
+    double confirm_supported{0.0};     ///< the unconfirmed updates' supported cells, summed
+    double confirm_expected{0.0};      ///< ... and the cells their edges should show (VerifyResult::cells_expected)
     /// The background rate (events per pixel per second) an accumulated history's noise is estimated with: the
     /// estimator's last measurement (noise_rate_hz_), 0 on a worker's catch-up (the window count alone).
     double noise_rate_hz{0.0};
