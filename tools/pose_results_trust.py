@@ -255,8 +255,11 @@ def mean(vals):
 
 
 def valid_share(res) -> float | None:
-    """Share of the pose windows with a valid pose (tracking + holding), from evpipe's summary."""
+    """Share of the pose windows with a valid (published) pose, from evpipe's summary: `pose_updates`, not the
+    tracking status's share (a tracking window may carry no valid pose: unconfirmed, or refused by the verification)."""
     s = res["summary"]
+    if s.get("pose_windows") and "pose_updates" in s:
+        return s["pose_updates"] / s["pose_windows"]
     if "pose_tracking_share" not in s:
         return None
     return s.get("pose_tracking_share", 0.0) + s.get("pose_holding_share", 0.0)

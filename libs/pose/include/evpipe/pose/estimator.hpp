@@ -109,16 +109,16 @@ struct EstimatorOptions {
   int confirm_windows = 0;
   /// The same without a configured prior (every initialisation then searches the whole view, or around a pose found
   /// that way): at least this many. The initial pose's verification has no motion to say which segments must show
-  /// support (every one is required, half of them and of their expected cells suffice); the updates after it have
-  /// the pose before them. Clutter beside the target let wrong initial poses (the board 170-180 deg / 0.3-0.5 m
+  /// support (every one is required; half of them and a third of their expected cells suffice); the updates after it
+  /// have the pose before them. Clutter beside the target let wrong initial poses (the board 170-180 deg / 0.3-0.5 m
   /// off) pass alone and fail at the next windows. An unconfirmed track whose update is not healthy is dropped (the
   /// search starts again), so the confirmation is that many healthy updates in a row right after the initialisation.
   int confirm_windows_without_prior = 3;
   /// ... and those updates together must show this share of the cells their edges should show
   /// (VerifyResult::cells_supported / cells_expected summed), else the track is dropped. A pose that lays part of
   /// the model on other structure shows about half of them, window after window, and passes the single window's
-  /// test (min_coverage 0.5) now and then; a true pose shows most of them (measured 0.8-0.95 on the synthetic sets).
-  /// The threshold is the middle between the two, two thirds.
+  /// test (min_coverage, a third) now and then; a true pose shows most of them (measured 0.8-0.95 on the synthetic
+  /// sets). The threshold is the middle between the two, two thirds.
   double confirm_min_coverage_without_prior = 2.0 / 3.0;
   /// Compare every initial and tracked pose with the pose turned by the model's partial symmetries
   /// (model_symmetries(), filled into init.verification / track.verification when they list none): a pose whose

@@ -65,7 +65,7 @@ struct VerifyOptions {
   /// motion would show (Poisson, the window's measured events per pixel swept).
   double min_segment_coverage = 0.5;
   double min_segment_share = 0.5;  ///< this share of the required segments must be supported (a majority) ...
-  double min_coverage = 0.5;       ///< ... and the model this share of its expected supported cells
+  double min_coverage = 0.35;      ///< ... and the model this share of its expected supported cells
   /// Observability: the pose from one measurement per supported cell (cell_sigma_px each, the position of an edge
   /// in a cell) must have 1-sigma errors below these.
   /// The wrong-pose threshold itself (20 mm / 2 deg) at 1 sigma: support that leaves more fixes nothing. (2 or
