@@ -430,8 +430,8 @@ def section_slow(rows) -> list[str]:
              f"{TARGETS['planar'][1]} m (seed {SEEDS['slow-planar']}), roadheader at {TARGETS['roadheader'][1]} m (seed "
              f"{SEEDS['slow-roadheader']}). The issue wants ≥ 99 % of the windows with a valid pose. *valid windows*: "
              "published (valid: tracking or holding) poses / windows, evpipe's summary; *error*: ATE RMSE mm / "
-             "rotation RMSE ° of every "
-             "published pose; *peak*: the fastest the model's centre moves and turns in the scene's truth (the options "
+             "rotation RMSE ° of every published pose; *peak*: the fastest the model's centre moves and turns in the "
+             "scene's truth (the options "
              "are upper bounds; the sum of three sinusoids per axis reaches only part of them in 3 s).", "",
              "| target | V m/s | W °/s | peak m/s / °/s | noise Hz/px | filter | valid windows | error mm / ° "
              "| wrong confident | NEES |",

@@ -215,8 +215,6 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   out.t_us = job.t_us;
   out.generation = job.generation;
   InitResult init = initialise_pose(job.events, camera_, model_, job.search, options_.init);
-  // Without a configured prior every search is one (a re-initialisation searches around a pose found without one).
-  out.without_prior = !prior_;
   if (!init.ok && job.fallback) init = initialise_pose(job.events, camera_, model_, job.fallback, options_.init);
   if (!init.ok) {
     out.note = "initialisation: " + init.message;
@@ -270,10 +268,11 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
     out.pose_valid = false;  // tracking from here, but this window did not measure the pose (InitOutcome)
     out.note = outcome.note;
   }
-  track_.confirm_needed = outcome.without_prior
-                              ? std::max(options_.confirm_windows, options_.confirm_windows_without_prior)
-                              : options_.confirm_windows;
-  track_.confirm_min_coverage = outcome.without_prior ? options_.confirm_min_coverage_without_prior : 0.0;
+  // Without a configured prior every search is one (a re-initialisation searches around a pose found without one).
+  const bool without_prior = !prior_;
+  track_.confirm_needed = without_prior ? std::max(options_.confirm_windows, options_.confirm_windows_without_prior)
+                                        : options_.confirm_windows;
+  track_.confirm_min_coverage = without_prior ? options_.confirm_min_coverage_without_prior : 0.0;
   track_.confirmed = track_.healthy_in_a_row >= track_.confirm_needed && track_.confirm_min_coverage <= 0.0;
   unconfirmed(out);
   return out;
@@ -508,6 +507,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
       (u.healthy || inconclusive) && (camera::translation_distance_m(u.T_cam_model, predicted) > options_.max_step_m ||
                                       camera::rotation_angle_deg(u.T_cam_model, predicted) > options_.max_step_deg);
   state.step_unverified = false;
+  bool confirmation_failed = false;  // healthy, but the unconfirmed track's updates together showed too little
   if (inconclusive && !jumped && options_.unverified_max_us > 0 && allow_unverified &&
       t_end_us - state.last->t_us <= options_.unverified_max_us) {
     // The model explains the events but they are too few to vouch for the pose: not published, not a loss.
@@ -531,9 +531,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
       state.confirmed = state.confirm_supported >= state.confirm_min_coverage * state.confirm_expected;
       if (!state.confirmed) {
         // Healthy window by window, but together short of what the model's edges should show: a partial match.
-        state.lost = true;
-        state.previous.reset();
-        state.trail.clear();
+        confirmation_failed = true;
         out.note = fmt::format(
             "tracking: the first {} updates show {:.0f} % of the cells the model's edges should (need {:.0f} %): "
             "not confirmed, initialising again",
@@ -570,15 +568,15 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
       state.trail.clear();
     }
   }
-  if (state.lost) out.pose_valid = false;  // (an update that ended an unconfirmed track)
-  if (!state.confirmed && !state.lost && !(u.healthy && !jumped)) {
+  if (!state.confirmed && !state.lost && (confirmation_failed || !(u.healthy && !jumped))) {
     // Not confirmed yet (confirm_windows, confirm_windows_without_prior): an initial pose whose next updates do not
-    // all verify is not tracked on; the search starts again.
+    // all verify, or together show too little, is not tracked on; the search starts again.
     state.lost = true;
     state.previous.reset();
     state.trail.clear();
-    out.note += " (the track was not confirmed: initialising again)";
+    if (!confirmation_failed) out.note += " (the track was not confirmed: initialising again)";
   }
+  if (state.lost) out.pose_valid = false;
   out.status = state.lost ? TrackStatus::lost : TrackStatus::tracking;
   return out;
 }

@@ -173,8 +173,7 @@ struct InitOutcome {
   /// false: the fresh events did not give a healthy polish; the track starts from the accumulation's pose, but this
   /// window's pose is not published as valid (it is a blur of the motion over the accumulation's span).
   bool measured_at_t{true};
-  bool without_prior{false};  ///< found with no pose to search around (EstimatorOptions::confirm_windows_without_prior)
-  std::string note;           ///< why not ok
+  std::string note;  ///< why not ok
   std::uint64_t generation{0};
   /// Set by advance_initialisation(): the track was carried on the worker over the windows that passed during
   /// the attempt; t_us and polished are then those of the last slice tracked, `previous` the pose before it.
