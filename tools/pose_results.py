@@ -607,7 +607,8 @@ def main() -> None:
         doc += trust.section_clutter(trust_sections["clutter"])
         doc += trust.section_real(trust_sections["real"], trust_note)
         doc += trust.section_noprior(trust_sections["noprior"])
-        doc += trust.section_summary({"standard (a)": [(None, r) for r in results.values()], **trust_sections})
+        doc += trust.section_summary({"standard (a)": [({"filter": label}, r) for (_, label), r in results.items()],
+                                      **trust_sections})
     if ctx.failures:
         doc += ["## Failed runs", ""] + [f"* `{f.splitlines()[0]}`" for f in ctx.failures] + [""]
     doc.append(f"_Run took {time.time() - t0:.0f} s with {a.jobs} jobs; {version}, commit {git_describe()}, build "
