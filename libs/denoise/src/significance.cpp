@@ -1,6 +1,7 @@
 #include "evpipe/denoise/significance.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -476,6 +477,98 @@ bool fit_plane(const PlaneSums& p, double& a, double& gx, double& gy) noexcept {
   return true;
 }
 
+/// The edge-surface test's motion prior from the 5×5 block of kept events around a pixel: the points (dx, dy, s)
+/// with s = t_kept − t in [−T, horizon], the event's polarity, own pixel excluded. Point (dx, dy) is bit and index
+/// (dy + 2)·8 + dx + 2 of mask and s.
+struct KeptBlock {
+  PlaneSums sums;
+  std::uint64_t mask = 0;
+  std::int32_t oldest = 0;  // max |s| over the points (0 when none)
+  std::array<std::int32_t, 40> s{};
+};
+
+/// One point's test (the reference; scan_kept_avx2 computes the same lane by lane).
+inline bool kept_point(std::int32_t v, std::int32_t s, int polarity, std::int32_t window_us,
+                       std::int32_t horizon_us) noexcept {
+  return (v != kNever) & ((v & 1) == polarity) & (s >= -window_us) & (s <= horizon_us);
+}
+
+void scan_kept_scalar(const std::int32_t* centre, std::int64_t stride, std::int32_t then, int polarity,
+                      std::int32_t window_us, std::int32_t horizon_us, KeptBlock& out) noexcept {
+  for (int dy = -2; dy <= 2; ++dy) {
+    const std::int32_t* row = centre + dy * stride;
+    for (int dx = -2; dx <= 2; ++dx) {
+      const std::int32_t v = row[dx];
+      const std::int32_t s = (v >> 1) - then;
+      if (!kept_point(v, s, polarity, window_us, horizon_us) || (dx == 0 && dy == 0)) continue;
+      const auto i = static_cast<std::size_t>((dy + 2) * 8 + dx + 2);
+      out.mask |= std::uint64_t{1} << i;
+      out.s[i] = s;
+      out.oldest = std::max(out.oldest, std::abs(s));
+      out.sums.add(dx, dy, s, 1);
+    }
+  }
+}
+
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+/// The same with AVX2: a row of the block per register (5 of 8 lanes; kept_ is padded so that the 3 lanes past the
+/// last row's end stay inside it), per-lane sums over the rows, the plane sums from them in 64 bits.
+__attribute__((target("avx2"))) void scan_kept_avx2(const std::int32_t* centre, std::int64_t stride, std::int32_t then,
+                                                    int polarity, std::int32_t window_us, std::int32_t horizon_us,
+                                                    KeptBlock& out) noexcept {
+  const __m256i v_never = _mm256_set1_epi32(kNever);
+  const __m256i v_one = _mm256_set1_epi32(1);
+  const __m256i v_pol = _mm256_set1_epi32(polarity);
+  const __m256i v_then = _mm256_set1_epi32(then);
+  const __m256i v_oldest = _mm256_set1_epi32(-window_us);
+  const __m256i v_horizon = _mm256_set1_epi32(horizon_us);
+  const __m256i lanes = _mm256_setr_epi32(-1, -1, -1, -1, -1, 0, 0, 0);
+  const __m256i centre_lanes = _mm256_setr_epi32(-1, -1, 0, -1, -1, 0, 0, 0);
+  // Per lane (dx): the count, Σ dy, Σ dy², Σ s, Σ dy·s, max |s| of the points.
+  __m256i n = _mm256_setzero_si256();
+  __m256i ny = n, nyy = n, ss = n, ys = n, oldest = n;
+  std::uint64_t mask = 0;
+  for (int dy = -2; dy <= 2; ++dy) {
+    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(centre + dy * stride - 2));
+    const __m256i s = _mm256_sub_epi32(_mm256_srai_epi32(v, 1), v_then);
+    __m256i ok = _mm256_andnot_si256(_mm256_cmpeq_epi32(v, v_never), dy == 0 ? centre_lanes : lanes);
+    ok = _mm256_and_si256(ok, _mm256_cmpeq_epi32(_mm256_and_si256(v, v_one), v_pol));
+    ok = _mm256_andnot_si256(_mm256_or_si256(_mm256_cmpgt_epi32(v_oldest, s), _mm256_cmpgt_epi32(s, v_horizon)), ok);
+    const __m256i sm = _mm256_and_si256(s, ok);
+    const __m256i dy_v = _mm256_set1_epi32(dy);
+    const __m256i one = _mm256_and_si256(ok, v_one);
+    n = _mm256_add_epi32(n, one);
+    ny = _mm256_add_epi32(ny, _mm256_mullo_epi32(one, dy_v));
+    nyy = _mm256_add_epi32(nyy, _mm256_mullo_epi32(one, _mm256_set1_epi32(dy * dy)));
+    ss = _mm256_add_epi32(ss, sm);
+    ys = _mm256_add_epi32(ys, _mm256_mullo_epi32(sm, dy_v));
+    oldest = _mm256_max_epi32(oldest, _mm256_abs_epi32(sm));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.s.data() + (dy + 2) * 8), s);
+    mask |= static_cast<std::uint64_t>(static_cast<std::uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(ok))))
+            << ((dy + 2) * 8);
+  }
+  out.mask = mask;
+  if (std::popcount(mask) < 3) {  // no fit: only the count matters
+    out.sums.n = std::popcount(mask);
+    return;
+  }
+  // |s| <= max(T, horizon) <= 1e8 µs: the per-lane sums over 5 rows fit 32 bits, the totals are taken in 64.
+  std::array<std::int32_t, 8> a_n{}, a_ny{}, a_nyy{}, a_ss{}, a_ys{}, a_old{};
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_n.data()), n);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_ny.data()), ny);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_nyy.data()), nyy);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_ss.data()), ss);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_ys.data()), ys);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_old.data()), oldest);
+  PlaneSums& p = out.sums;
+  for (std::size_t l = 0; l < 5; ++l) {
+    const std::int64_t dx = static_cast<std::int64_t>(l) - 2;
+    p.n += a_n[l], p.sx += dx * a_n[l], p.sy += a_ny[l], p.sxx += dx * dx * a_n[l], p.sxy += dx * a_ny[l];
+    p.syy += a_nyy[l], p.ss += a_ss[l], p.sxs += dx * a_ss[l], p.sys += a_ys[l];
+    out.oldest = std::max(out.oldest, a_old[l]);
+  }
+}
+#endif
 }  // namespace
 
 Significance::Significance(const SensorGeometry& geometry, SignificanceOptions options)
@@ -517,8 +610,10 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
 void Significance::allocate() {
   // The filter's only per-pixel allocation (kRing · 4 bytes per padded pixel).
   ring_.resize(static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad) * kRing));
-  kept_.resize(
-      options_.edge_line && options_.surface ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad)) : 0);
+  // kept_: one per padded pixel, and 8 more (never written) that the vector scan of the block's last row may read.
+  kept_.resize(options_.edge_line && options_.surface
+                   ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad)) + 8
+                   : 0);
 }
 
 void Significance::reset() noexcept {
@@ -994,31 +1089,21 @@ float Significance::surface_ratio(const Event& e, std::int32_t horizon_us) const
 float Significance::surface_ratio_at(std::size_t centre, std::int32_t then, int polarity,
                                      std::int32_t horizon_us) const noexcept {
   // The motion prior: the kept events of the 5×5 block (own pixel excluded) of the event's polarity within
-  // [t − T, t + horizon]; their plane s(q) = a + g·q (s relative to t, µs) gives the local normal flow.
-  constexpr int kBlock = 24;
-  std::array<std::int32_t, kBlock> ps{};
-  std::array<std::int8_t, kBlock> pq{};  // index (dy + 2)·5 + dx + 2
-  int n = 0;
+  // [t − T, t + horizon]; their plane s(q) = a + g·q (s relative to t, µs) gives the local normal flow. The scan
+  // gives their integer plane sums (order-free: every kernel the same fit), a bit per point and their times.
+  KeptBlock block;
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+  if (kernel_ == kAvx2) {
+    scan_kept_avx2(kept_.data() + centre, stride_, then, polarity, window_us_, horizon_us, block);
+  } else {
+    scan_kept_scalar(kept_.data() + centre, stride_, then, polarity, window_us_, horizon_us, block);
+  }
+#else
+  scan_kept_scalar(kept_.data() + centre, stride_, then, polarity, window_us_, horizon_us, block);
+#endif
+  const PlaneSums& sums = block.sums;
+  if (sums.n < 3) return 0.0F;
   const auto c = static_cast<std::int64_t>(centre);
-  for (int dy = -2; dy <= 2; ++dy) {  // branch-free: every entry is written, n advances for the ones that count
-    const std::int32_t* row = kept_.data() + c + dy * stride_;
-    for (int dx = -2; dx <= 2; ++dx) {
-      const std::int32_t v = row[dx];
-      const std::int32_t s = (v >> 1) - then;
-      const bool ok =
-          (v != kNever) & ((v & 1) == polarity) & (s >= -window_us_) & (s <= horizon_us) & ((dx != 0) | (dy != 0));
-      const auto nu = static_cast<std::size_t>(std::min(n, kBlock - 1));
-      ps[nu] = s;
-      pq[nu] = static_cast<std::int8_t>((dy + 2) * 5 + dx + 2);
-      n += ok ? 1 : 0;
-    }
-  }
-  if (n < 3) return 0.0F;
-  PlaneSums sums;
-  for (int i = 0; i < n; ++i) {
-    const auto iu = static_cast<std::size_t>(i);
-    sums.add(pq[iu] % 5 - 2, pq[iu] / 5 - 2, ps[iu], 1);
-  }
   double a = 0.0;
   double gx = 0.0;
   double gy = 0.0;
@@ -1027,20 +1112,19 @@ float Significance::surface_ratio_at(std::size_t centre, std::int32_t then, int 
   // the widest tolerance among them. Otherwise their slots are empty (K comes from other events alone), which the
   // test would not keep with fewer slots than kept points; skipped without reading the rings.
   const double eps = options_.edge_precision_px;
-  std::int32_t oldest = 0;
-  for (int i = 0; i < n; ++i) oldest = std::max(oldest, std::abs(ps[static_cast<std::size_t>(i)]));
-  if (std::abs(a) > jitter_us_ + eps * oldest) return 0.0F;
+  if (std::abs(a) > jitter_us_ + eps * block.oldest) return 0.0F;
   // Once more without the points off the plane by more than the edge tolerance δ(|g·q|) (a kept noise event,
   // another crossing), if three remain.
   PlaneSums inliers = sums;
-  for (int i = 0; i < n; ++i) {
-    const auto iu = static_cast<std::size_t>(i);
-    const int dx = pq[iu] % 5 - 2;
-    const int dy = pq[iu] / 5 - 2;
+  for (std::uint64_t bits = block.mask; bits != 0; bits &= bits - 1) {
+    const auto i = static_cast<std::size_t>(__builtin_ctzll(bits));
+    const int dx = static_cast<int>(i % 8) - 2;
+    const int dy = static_cast<int>(i / 8) - 2;
     const double tau = gx * dx + gy * dy;
-    if (std::abs(ps[iu] - a - tau) > jitter_us_ + eps * std::abs(tau)) inliers.add(dx, dy, ps[iu], -1);
+    const std::int32_t si = block.s[i];
+    if (std::abs(si - a - tau) > jitter_us_ + eps * std::abs(tau)) inliers.add(dx, dy, si, -1);
   }
-  if (inliers.n < n && inliers.n >= 3) {
+  if (inliers.n < sums.n && inliers.n >= 3) {
     double a2 = 0.0;
     double gx2 = 0.0;
     double gy2 = 0.0;
