@@ -169,72 +169,142 @@ __attribute__((target("sse4.1"))) std::size_t match_ages_sse4(const LineArgs& a,
   return n;
 }
 
-/// The same with AVX2: two directions per register (one per 128-bit half), all 8 thresholds in one register.
-__attribute__((target("avx2"))) std::size_t match_ages_avx2(const LineArgs& a,
-                                                            std::array<std::int32_t, 9>& found) noexcept {
-  const __m256i v_now = _mm256_set1_epi32(a.now);
-  const __m256i v_pol = _mm256_set1_epi32(a.polarity);
-  const __m256i v_one = _mm256_set1_epi32(1);
-  const __m256i v_past_window = _mm256_set1_epi32(a.line_us[7] + 1);
-  const __m256i v_jitter = _mm256_set1_epi32(a.jitter_us);
-  const __m256 v_precision = _mm256_set1_ps(a.precision);
-  const __m256i v_lowest = _mm256_set1_epi32(std::numeric_limits<std::int32_t>::min());
-  const __m256i v_highest = _mm256_set1_epi32(kNoMatch);
-  const __m256i u = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a.line_us));
-  const __m256i u1 = _mm256_add_epi32(u, v_one);
-  const __m256i need = _mm256_blendv_epi8(v_highest, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
-                                          _mm256_cmpgt_epi32(u, _mm256_setzero_si256()));
-  __m256i count = _mm256_setzero_si256();
-  std::size_t n = 0;
+/// Per-lane constants of the AVX2 edge-line kernel.
+struct LineConstsAvx2 {
+  __m256i now, pol, one, past_window, jitter, lowest, highest;
+  __m256 precision;
+};
+
+/// Directions i (low half) and i + 1 (high half) of match_ages_sse4's per-direction work: each half holds its
+/// direction's smallest matched age (kNoMatch when none) in every lane.
+__attribute__((target("avx2"), always_inline)) inline __m256i pair_ages_avx2(const LineArgs& a, const LineConstsAvx2& k,
+                                                                             std::size_t i) noexcept {
+  const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
+  const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
   const auto* ring = a.ring;
-  for (std::size_t i = 0; i < 8; i += 2) {
-    const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
-    const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
-    const __m256i r1 =
-        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off1) * 4)),
-                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off0) * 4)));
-    const __m256i r2 =
-        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off1) * 4)),
-                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off0) * 4)));
-    const __m256i s1 = _mm256_min_epi32(_mm256_sub_epi32(v_now, _mm256_srai_epi32(r1, 1)), v_past_window);
-    const __m256i pol1 = _mm256_cmpeq_epi32(_mm256_and_si256(r1, v_one), v_pol);
-    const __m256i pol2 = _mm256_cmpeq_epi32(_mm256_and_si256(r2, v_one), v_pol);
-    const __m256i s2 = _mm256_blendv_epi8(v_highest, _mm256_sub_epi32(v_now, _mm256_srai_epi32(r2, 1)), pol2);
-    const __m256i tol =
-        _mm256_add_epi32(v_jitter, _mm256_cvttps_epi32(_mm256_mul_ps(v_precision, _mm256_cvtepi32_ps(s1))));
-    const __m256i twice = _mm256_add_epi32(s1, s1);
-    const __m256i hi = _mm256_add_epi32(twice, tol);
-    __m256i lo = _mm256_blendv_epi8(v_lowest, _mm256_sub_epi32(twice, tol), pol1);
-    lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, v_lowest, 12));  // within each half
-    lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, v_lowest, 8));
-    __m256i b = _mm256_shuffle_epi32(s2, 0x00);
-    __m256i none = _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi));
-    b = _mm256_shuffle_epi32(s2, 0x55);
-    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
-    b = _mm256_shuffle_epi32(s2, 0xAA);
-    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
-    b = _mm256_shuffle_epi32(s2, 0xFF);
-    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
-    const __m256i valid = _mm256_andnot_si256(_mm256_or_si256(none, _mm256_cmpeq_epi32(s1, v_past_window)), pol1);
-    __m256i m = _mm256_blendv_epi8(v_highest, s1, valid);
-    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
-    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));  // in every lane of each half
-    // Direction i (low half), then i + 1 (high half): the decision may fall between them.
-    const __m256i m0 = _mm256_permute2x128_si256(m, m, 0x00);
-    const std::int32_t age0 = _mm_cvtsi128_si32(_mm256_castsi256_si128(m));
-    found[n] = age0;
-    n += age0 != kNoMatch ? 1 : 0;
-    count = _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, m0));
-    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) break;
-    const __m256i m1 = _mm256_permute2x128_si256(m, m, 0x11);
-    const std::int32_t age1 = _mm_cvtsi128_si32(_mm256_extracti128_si256(m, 1));
-    found[n] = age1;
-    n += age1 != kNoMatch ? 1 : 0;
-    count = _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, m1));
-    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) break;
-  }
-  return n;
+  const __m256i r1 = _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off1) * 4)),
+                                      _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off0) * 4)));
+  const __m256i r2 =
+      _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off1) * 4)),
+                       _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off0) * 4)));
+  const __m256i s1 = _mm256_min_epi32(_mm256_sub_epi32(k.now, _mm256_srai_epi32(r1, 1)), k.past_window);
+  const __m256i pol1 = _mm256_cmpeq_epi32(_mm256_and_si256(r1, k.one), k.pol);
+  const __m256i pol2 = _mm256_cmpeq_epi32(_mm256_and_si256(r2, k.one), k.pol);
+  const __m256i s2 = _mm256_blendv_epi8(k.highest, _mm256_sub_epi32(k.now, _mm256_srai_epi32(r2, 1)), pol2);
+  const __m256i tol =
+      _mm256_add_epi32(k.jitter, _mm256_cvttps_epi32(_mm256_mul_ps(k.precision, _mm256_cvtepi32_ps(s1))));
+  const __m256i twice = _mm256_add_epi32(s1, s1);
+  const __m256i hi = _mm256_add_epi32(twice, tol);
+  __m256i lo = _mm256_blendv_epi8(k.lowest, _mm256_sub_epi32(twice, tol), pol1);
+  lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, k.lowest, 12));  // within each half
+  lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, k.lowest, 8));
+  __m256i b = _mm256_shuffle_epi32(s2, 0x00);
+  __m256i none = _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi));
+  b = _mm256_shuffle_epi32(s2, 0x55);
+  none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+  b = _mm256_shuffle_epi32(s2, 0xAA);
+  none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+  b = _mm256_shuffle_epi32(s2, 0xFF);
+  none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+  const __m256i valid = _mm256_andnot_si256(_mm256_or_si256(none, _mm256_cmpeq_epi32(s1, k.past_window)), pol1);
+  __m256i m = _mm256_blendv_epi8(k.highest, s1, valid);
+  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+  return _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
 }
+
+/// One layer of disjoint compare-exchanges on 8 lanes: each lane meets `partner`'s, the lanes in `high` keep the
+/// larger value.
+template <int High>
+__attribute__((target("avx2"), always_inline)) inline __m256i sort_layer_avx2(__m256i v, __m256i partner) noexcept {
+  const __m256i p = _mm256_permutevar8x32_epi32(v, partner);
+  return _mm256_blend_epi32(_mm256_min_epi32(v, p), _mm256_max_epi32(v, p), High);
+}
+
+/// count_m += (age <= U_m) (u1: U_m + 1, age in every lane).
+__attribute__((target("avx2"), always_inline)) inline __m256i add(__m256i count, __m256i u1, __m256i age) noexcept {
+  return _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, age));
+}
+
+/// 1 when count_m > m − 1 for some m (need_m = m − 1, or never).
+__attribute__((target("avx2"), always_inline)) inline unsigned decided_avx2(__m256i count, __m256i need) noexcept {
+  return _mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0 ? 1U : 0U;
+}
+
+/// The edge-line test with AVX2 (Significance::edge_lines_scalar's decisions and scores): two directions per
+/// register (one per 128-bit half), all 8 thresholds in one register. The first two directions are decided one by
+/// one (an event with dense support stops there); otherwise the other six are matched at once and the first
+/// direction after which the counts "at least m matched ages <= U_m" decide is found from their running sums, the
+/// directions after it dropped (the walk stops there). The matched ages are sorted in a register (sort8's network)
+/// and the margin max_m U_m / u_(m) taken over them with the walk's float operations. past: the sorted matches, then
+/// zeros; returns the margin.
+__attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::int32_t* past, int& past_n) noexcept {
+  LineConstsAvx2 k;
+  k.now = _mm256_set1_epi32(a.now);
+  k.pol = _mm256_set1_epi32(a.polarity);
+  k.one = _mm256_set1_epi32(1);
+  k.past_window = _mm256_set1_epi32(a.line_us[7] + 1);
+  k.jitter = _mm256_set1_epi32(a.jitter_us);
+  k.precision = _mm256_set1_ps(a.precision);
+  k.lowest = _mm256_set1_epi32(std::numeric_limits<std::int32_t>::min());
+  k.highest = _mm256_set1_epi32(kNoMatch);
+  const __m256i u = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a.line_us));
+  const __m256i u1 = _mm256_add_epi32(u, k.one);
+  const __m256i need = _mm256_blendv_epi8(k.highest, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+                                          _mm256_cmpgt_epi32(u, _mm256_setzero_si256()));
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i m01 = pair_ages_avx2(a, k, 0);
+  // Ages in direction order, [d0 d2 d4 d6 | d1 d3 d5 d7] until the final permutation.
+  __m256i ages = _mm256_blend_epi32(k.highest, m01, 0x11);
+  int last = 7;  // the last direction examined
+  __m256i count = add(_mm256_setzero_si256(), u1, _mm256_permute2x128_si256(m01, m01, 0x00));
+  if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) {
+    last = 0;
+    ages = _mm256_blend_epi32(k.highest, m01, 0x01);
+  } else {
+    count = add(count, u1, _mm256_permute2x128_si256(m01, m01, 0x11));
+    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) {
+      last = 1;
+    } else {
+      const __m256i m23 = pair_ages_avx2(a, k, 2);
+      const __m256i m45 = pair_ages_avx2(a, k, 4);
+      const __m256i m67 = pair_ages_avx2(a, k, 6);
+      ages = _mm256_blend_epi32(_mm256_blend_epi32(_mm256_blend_epi32(m01, m23, 0x22), m45, 0x44), m67, 0x88);
+      // Running counts after directions 2..7: bit j − 2 set when decided after direction j.
+      const __m256i c2 = add(count, u1, _mm256_permute2x128_si256(m23, m23, 0x00));
+      const __m256i c3 = add(c2, u1, _mm256_permute2x128_si256(m23, m23, 0x11));
+      const __m256i c4 = add(c3, u1, _mm256_permute2x128_si256(m45, m45, 0x00));
+      const __m256i c5 = add(c4, u1, _mm256_permute2x128_si256(m45, m45, 0x11));
+      const __m256i c6 = add(c5, u1, _mm256_permute2x128_si256(m67, m67, 0x00));
+      const __m256i c7 = add(c6, u1, _mm256_permute2x128_si256(m67, m67, 0x11));
+      const unsigned bits = decided_avx2(c2, need) | decided_avx2(c3, need) << 1 | decided_avx2(c4, need) << 2 |
+                            decided_avx2(c5, need) << 3 | decided_avx2(c6, need) << 4 | decided_avx2(c7, need) << 5 |
+                            1U << 5;
+      last = 2 + std::countr_zero(bits);
+    }
+  }
+  ages = _mm256_permutevar8x32_epi32(ages, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
+  ages = _mm256_blendv_epi8(ages, k.highest, _mm256_cmpgt_epi32(lane, _mm256_set1_epi32(last)));
+  // Sorted ascending (no-match markers last).
+  __m256i v = ages;
+  v = sort_layer_avx2<0xCC>(v, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5));
+  v = sort_layer_avx2<0xF0>(v, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3));
+  v = sort_layer_avx2<0xAA>(v, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6));
+  v = sort_layer_avx2<0x30>(v, _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7));
+  v = sort_layer_avx2<0x50>(v, _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7));
+  v = sort_layer_avx2<0x54>(v, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));
+  const __m256i matched = _mm256_cmpgt_epi32(k.highest, v);  // a prefix of the lanes
+  past_n = std::popcount(static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(matched))));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_and_si256(v, matched));
+  // max_m U_m / max(u_(m), 1) over the matches (0 when none), as the walk computes each.
+  const __m256 ratio =
+      _mm256_and_ps(_mm256_div_ps(_mm256_cvtepi32_ps(u), _mm256_cvtepi32_ps(_mm256_max_epi32(v, k.one))),
+                    _mm256_castsi256_ps(matched));
+  __m128 r = _mm_max_ps(_mm256_castps256_ps128(ratio), _mm256_extractf128_ps(ratio, 1));
+  r = _mm_max_ps(r, _mm_movehl_ps(r, r));
+  r = _mm_max_ss(r, _mm_shuffle_ps(r, r, 0x55));
+  return _mm_cvtss_f32(r);
+}
+
 /// The look-ahead's future half-lines (Significance::future_lines) with SSE4.1: per direction, every entry pair of
 /// p + d and p + 2d at once. The scalar loop stops at the first entry not later than the event (s <= 0); with the
 /// rings' times descending (time-ordered input) that is the same as masking those entries, and its last match is
@@ -832,7 +902,8 @@ float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarit
 #if defined(EVPIPE_SIGNIFICANCE_X86)
   const LineArgs args{ring_.data(), stride_,   static_cast<std::int64_t>(centre), now, polarity, line_us_.data(),
                       jitter_us_,   precision_};
-  n = kernel_ == kAvx2 ? match_ages_avx2(args, found) : match_ages_sse4(args, found);
+  if (kernel_ == kAvx2) return match_lines_avx2(args, past_ages_.data(), past_n_);
+  n = match_ages_sse4(args, found);
 #endif
   // The margin max_m U_m / u_(m) over the matches examined, with the scalar walk's float operations; few matches
   // (the common case) need no sorting network.
