@@ -553,8 +553,8 @@ bool fit_plane(const PlaneSums& p, double& a, double& gx, double& gy) noexcept {
 struct KeptBlock {
   PlaneSums sums;
   std::uint64_t mask = 0;
-  std::int32_t oldest = 0;  // max |s| over the points (0 when none)
-  std::array<std::int32_t, 40> s{};
+  std::int32_t oldest = 0;         // max |s| over the points (0 when none)
+  std::array<std::int32_t, 40> s;  // NOLINT(cppcoreguidelines-pro-type-member-init): read only where mask is set
 };
 
 /// One point's test (the reference; scan_kept_avx2 computes the same lane by lane).
@@ -956,7 +956,6 @@ bool Significance::accept(const Event& e) noexcept {
   const std::int32_t* ring = ring_.data();
   const auto s = static_cast<std::int64_t>(stride_);
   const std::int64_t c = static_cast<std::int64_t>(centre);
-  const std::array<std::int64_t, 8> nb = {c - s - 1, c - s, c - s + 1, c - 1, c + 1, c + s - 1, c + s, c + s + 1};
   // The 5×5 block's rings (5 rows of 5·kRing·4 bytes): start every cache line now, the tests below read them in
   // an order that jumps between rows.
   for (std::int64_t dy = -2; dy <= 2; ++dy) {
@@ -964,19 +963,25 @@ bool Significance::accept(const Event& e) noexcept {
     __builtin_prefetch(row);
     __builtin_prefetch(row + 5 * kRing * sizeof(std::int32_t) - 1);
   }
-  std::array<std::int32_t, 8> age{};
-  std::int32_t newest = kAgeCap;
-  for (std::size_t i = 0; i < 8; ++i) {
-    age[i] = std::min(kAgeCap, now - (ring[nb[i] * kRing] >> 1));
-    newest = std::min(newest, age[i]);
-  }
+  // The 8 neighbours' newest events (entry 0 of their rings); the youngest of them: max of (t − base)·2 + polarity,
+  // halved (the shift keeps the order).
+  const std::int32_t* up = ring + (c - s - 1) * kRing;
+  const std::int32_t* mid = ring + (c - 1) * kRing;
+  const std::int32_t* down = ring + (c + s - 1) * kRing;
+  const std::int32_t youngest =
+      std::max(std::max(std::max(up[0], up[kRing]), std::max(up[2 * kRing], mid[0])),
+               std::max(std::max(mid[2 * kRing], down[0]), std::max(down[kRing], down[2 * kRing])));
+  const std::int32_t newest = std::min(kAgeCap, now - (youngest >> 1));  // the smallest neighbour age
   if (e.t_us >= count_from_us_) {
-    if (newest > kZeroSupportUs) ++zero_support_;
-    if (newest > kShortZeroSupportUs) ++short_zero_support_;
+    zero_support_ += newest > kZeroSupportUs ? 1 : 0;
+    short_zero_support_ += newest > kShortZeroSupportUs ? 1 : 0;
     ++events_;
   }
   float ratio = 0.0F;
   if (options_.recency_max_us > 0) {
+    const std::array<std::int64_t, 8> nb = {c - s - 1, c - s, c - s + 1, c - 1, c + 1, c + s - 1, c + s, c + s + 1};
+    std::array<std::int32_t, 8> age{};
+    for (std::size_t i = 0; i < 8; ++i) age[i] = std::min(kAgeCap, now - (ring[nb[i] * kRing] >> 1));
     sort8(age);
     for (std::size_t k = 0; k < 8; ++k) {
       ratio = std::max(ratio, static_cast<float>(recency_us_[k]) / static_cast<float>(std::max(age[k], 1)));
@@ -1025,11 +1030,11 @@ void Significance::prefetch_block(const Event& e) const noexcept {
     __builtin_prefetch(row);
     __builtin_prefetch(row + std::size_t{3} * kRing * sizeof(std::int32_t) - 1);
   }
-  if (!kept_.empty()) {  // the edge-surface test's kept events (5×5 block: 5 rows of 20 bytes)
+  if (!kept_.empty()) {  // the edge-surface test's kept events (5×5 block: 5 rows of 20 bytes, 32 read)
     for (std::int64_t dy = -2; dy <= 2; ++dy) {
       const char* row = reinterpret_cast<const char*>(kept_.data() + c + dy * stride_ - 2);
       __builtin_prefetch(row);
-      __builtin_prefetch(row + 5 * sizeof(std::int32_t) - 1);
+      __builtin_prefetch(row + 8 * sizeof(std::int32_t) - 1);  // the vector scan reads 8
     }
   }
 }
@@ -1247,9 +1252,12 @@ class SignificanceFilter final : public Filter {
 
   [[nodiscard]] std::string_view name() const noexcept override { return "significance"; }
   void push(EventSpan events, Decisions& out) override {
-    for (const Event& e : events) {
+    out.keep.reserve(out.keep.size() + size_ + events.size());
+    out.score.reserve(out.score.size() + size_ + events.size());
+    for (std::size_t i = 0; i < events.size(); ++i) {
+      const Event& e = events[i];
       decide_before(e.t_us - lookahead_us_);
-      release(out);
+      if ((i & (kReleaseEvery - 1)) == 0) release(out);  // decided events leave in input order, a block at a time
       const bool keep = impl_.accept(e);
       const float score = impl_.last_score();
       if (size_ == 0 && keep) {  // nothing waits: out at once
@@ -1286,6 +1294,7 @@ class SignificanceFilter final : public Filter {
 
  private:
   static constexpr std::size_t kPrefetchAhead = 4;
+  static constexpr std::size_t kReleaseEvery = 256;
   static constexpr std::uint8_t kPending = 0;
   static constexpr std::uint8_t kKeep = 1;
   static constexpr std::uint8_t kDrop = 2;
@@ -1297,12 +1306,13 @@ class SignificanceFilter final : public Filter {
     std::array<std::int32_t, 8> past{};
   };
 
-  Entry& at(std::size_t i) noexcept { return fifo_[(head_ + i) & (fifo_.size() - 1)]; }
+  Entry& at(std::size_t i) noexcept { return fifo_[(head_ + i) & mask_]; }
   Entry& append() {
     if (size_ == fifo_.size()) {  // grow (power of two), unrolling the ring
       std::vector<Entry> bigger(std::max<std::size_t>(1024, 2 * fifo_.size()));
       for (std::size_t i = 0; i < size_; ++i) bigger[i] = at(i);
       fifo_.swap(bigger);
+      mask_ = fifo_.size() - 1;
       head_ = 0;
     }
     return at(size_++);
@@ -1345,7 +1355,7 @@ class SignificanceFilter final : public Filter {
       if (x.state == kPending) break;
       out.keep.push_back(x.state == kKeep ? 1 : 0);
       out.score.push_back(x.score);
-      head_ = (head_ + 1) & (fifo_.size() - 1);
+      head_ = (head_ + 1) & mask_;
       --size_;
       next_ = next_ > 0 ? next_ - 1 : 0;
     }
@@ -1355,6 +1365,7 @@ class SignificanceFilter final : public Filter {
   std::int64_t lookahead_us_;
   bool exact_scores_;
   std::vector<Entry> fifo_;
+  std::size_t mask_ = 0;  // fifo_.size() − 1
   std::size_t head_ = 0;
   std::size_t size_ = 0;
   std::size_t next_ = 0;  // first entry not examined by decide_before
