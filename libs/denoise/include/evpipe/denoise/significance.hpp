@@ -43,7 +43,8 @@
 // Speed: the edge-line test reads each direction's two rings whole (16 bytes each) and matches all their pairs at
 // once (SSE4.1, or AVX2 two directions at a time, chosen at run time from the CPU; the look-ahead's future
 // half-lines likewise with SSE4.1), which on time-ordered input is the same test as the scalar walk along the
-// rings: the same decisions and scores. The scalar walk remains the
+// rings: the same decisions and scores (the AVX2 kernel: the first two directions one by one, the other six at once;
+// the edge-surface test's scan of the kept block likewise, in integer plane sums). The scalar walk remains the
 // reference, used for out-of-order input and on other CPUs (EVPIPE_SIGNIFICANCE_KERNEL=scalar|sse4 forces it or
 // SSE4.1, for tests and benchmarks).
 
