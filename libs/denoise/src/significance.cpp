@@ -433,7 +433,16 @@ __attribute__((target("avx2"))) bool joint_may_pass_avx2(const LineArgs& a, std:
     c_lo = _mm256_sub_epi32(c_lo, _mm256_cmpgt_epi32(v_lo, x_)); \
     c_hi = _mm256_sub_epi32(c_hi, _mm256_cmpgt_epi32(v_hi, x_)); \
   } while (false)
-  for (int k = 0; k < past_count; ++k) EVPIPE_COUNT_AVX2(_mm256_set1_epi32(std::max(past[k], 1)));
+  // The past ages: the first four without a loop (at most four in most events; a trip count that varies from event
+  // to event costs a mispredicted branch), any others one by one. Lanes past past_count never count.
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256i p = _mm256_max_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(past)), v_one);
+  p = _mm256_blendv_epi8(p, v_highest, _mm256_cmpgt_epi32(lanes, _mm256_set1_epi32(past_count - 1)));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, _mm256_setzero_si256()));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, v_one));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, _mm256_set1_epi32(2)));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, _mm256_set1_epi32(3)));
+  for (int k = 4; k < past_count; ++k) EVPIPE_COUNT_AVX2(_mm256_set1_epi32(std::max(past[k], 1)));
   for (std::size_t i = 0; i < 8; i += 2) {
     const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
     const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];

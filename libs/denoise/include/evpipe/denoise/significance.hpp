@@ -121,7 +121,8 @@ class Significance {
   /// p + d; p + 2d's are not read): a future half-line's matched s is one of p + d's entries of the event's polarity
   /// with 0 < s <= L and 2s − tol(s) <= L (its p + 2d partner is within L), so each direction's smallest such s (its
   /// candidate) is <= its match, and #{merged ages <= V_m} <= #{past ages <= V_m} + #{candidates <= V_m}. The joint
-  /// test passes iff that count reaches m for some m; when the bound's does not, it cannot.
+  /// test passes iff that count reaches m for some m; when the bound's does not, it cannot. past_ages: 8 readable
+  /// values (past_line_ages_us()'s array), the first past_count used.
   [[nodiscard]] bool joint_may_pass(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
   /// Starts fetching the rings joint_ratio(e, ...) reads first.
   void prefetch_block(const Event& e) const noexcept;
