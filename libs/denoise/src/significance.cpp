@@ -253,35 +253,44 @@ __attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::i
                                           _mm256_cmpgt_epi32(u, _mm256_setzero_si256()));
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256i m01 = pair_ages_avx2(a, k, 0);
-  // Ages in direction order, [d0 d2 d4 d6 | d1 d3 d5 d7] until the final permutation.
-  __m256i ages = _mm256_blend_epi32(k.highest, m01, 0x11);
-  int last = 7;  // the last direction examined
   __m256i count = add(_mm256_setzero_si256(), u1, _mm256_permute2x128_si256(m01, m01, 0x00));
+  // Decided by the first one or two directions (dense support): one or two matches, no sorting needed.
+  const auto margin = [&a](std::size_t m, std::int32_t age) {
+    return static_cast<float>(a.line_us[m]) / static_cast<float>(std::max(age, 1));
+  };
   if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) {
-    last = 0;
-    ages = _mm256_blend_epi32(k.highest, m01, 0x01);
-  } else {
-    count = add(count, u1, _mm256_permute2x128_si256(m01, m01, 0x11));
-    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) {
-      last = 1;
-    } else {
-      const __m256i m23 = pair_ages_avx2(a, k, 2);
-      const __m256i m45 = pair_ages_avx2(a, k, 4);
-      const __m256i m67 = pair_ages_avx2(a, k, 6);
-      ages = _mm256_blend_epi32(_mm256_blend_epi32(_mm256_blend_epi32(m01, m23, 0x22), m45, 0x44), m67, 0x88);
-      // Running counts after directions 2..7: bit j − 2 set when decided after direction j.
-      const __m256i c2 = add(count, u1, _mm256_permute2x128_si256(m23, m23, 0x00));
-      const __m256i c3 = add(c2, u1, _mm256_permute2x128_si256(m23, m23, 0x11));
-      const __m256i c4 = add(c3, u1, _mm256_permute2x128_si256(m45, m45, 0x00));
-      const __m256i c5 = add(c4, u1, _mm256_permute2x128_si256(m45, m45, 0x11));
-      const __m256i c6 = add(c5, u1, _mm256_permute2x128_si256(m67, m67, 0x00));
-      const __m256i c7 = add(c6, u1, _mm256_permute2x128_si256(m67, m67, 0x11));
-      const unsigned bits = decided_avx2(c2, need) | decided_avx2(c3, need) << 1 | decided_avx2(c4, need) << 2 |
-                            decided_avx2(c5, need) << 3 | decided_avx2(c6, need) << 4 | decided_avx2(c7, need) << 5 |
-                            1U << 5;
-      last = 2 + std::countr_zero(bits);
-    }
+    const std::int32_t d0 = _mm256_cvtsi256_si32(m01);  // matched (it decided)
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_setr_epi32(d0, 0, 0, 0, 0, 0, 0, 0));
+    past_n = 1;
+    return margin(0, d0);
   }
+  count = add(count, u1, _mm256_permute2x128_si256(m01, m01, 0x11));
+  if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) {
+    const std::int32_t d0 = _mm256_cvtsi256_si32(m01);     // kNoMatch or matched
+    const std::int32_t d1 = _mm256_extract_epi32(m01, 4);  // matched (it decided)
+    const std::int32_t lo = std::min(d0, d1);
+    const std::int32_t hi = std::max(d0, d1);
+    const bool two = hi != kNoMatch;
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_setr_epi32(lo, two ? hi : 0, 0, 0, 0, 0, 0, 0));
+    past_n = two ? 2 : 1;
+    return std::max(margin(0, lo), two ? margin(1, hi) : 0.0F);
+  }
+  const __m256i m23 = pair_ages_avx2(a, k, 2);
+  const __m256i m45 = pair_ages_avx2(a, k, 4);
+  const __m256i m67 = pair_ages_avx2(a, k, 6);
+  // Ages in direction order: [d0 d2 d4 d6 | d1 d3 d5 d7], then permuted.
+  __m256i ages = _mm256_blend_epi32(_mm256_blend_epi32(_mm256_blend_epi32(m01, m23, 0x22), m45, 0x44), m67, 0x88);
+  // Running counts after directions 2..7: bit j − 2 set when decided after direction j.
+  const __m256i c2 = add(count, u1, _mm256_permute2x128_si256(m23, m23, 0x00));
+  const __m256i c3 = add(c2, u1, _mm256_permute2x128_si256(m23, m23, 0x11));
+  const __m256i c4 = add(c3, u1, _mm256_permute2x128_si256(m45, m45, 0x00));
+  const __m256i c5 = add(c4, u1, _mm256_permute2x128_si256(m45, m45, 0x11));
+  const __m256i c6 = add(c5, u1, _mm256_permute2x128_si256(m67, m67, 0x00));
+  const __m256i c7 = add(c6, u1, _mm256_permute2x128_si256(m67, m67, 0x11));
+  const unsigned bits = decided_avx2(c2, need) | decided_avx2(c3, need) << 1 | decided_avx2(c4, need) << 2 |
+                        decided_avx2(c5, need) << 3 | decided_avx2(c6, need) << 4 | decided_avx2(c7, need) << 5 |
+                        1U << 5;
+  const int last = 2 + std::countr_zero(bits);  // the last direction examined
   ages = _mm256_permutevar8x32_epi32(ages, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
   ages = _mm256_blendv_epi8(ages, k.highest, _mm256_cmpgt_epi32(lane, _mm256_set1_epi32(last)));
   // Sorted ascending (no-match markers last).
