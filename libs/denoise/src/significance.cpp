@@ -238,7 +238,7 @@ __attribute__((target("avx2"), always_inline)) inline unsigned decided_avx2(__m2
 /// and the margin max_m U_m / u_(m) taken over them with the walk's float operations. past: the sorted matches, then
 /// zeros; returns the margin.
 __attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::int32_t* past, int& past_n) noexcept {
-  LineConstsAvx2 k;
+  LineConstsAvx2 k;  // NOLINT(cppcoreguidelines-pro-type-member-init): every field set below
   k.now = _mm256_set1_epi32(a.now);
   k.pol = _mm256_set1_epi32(a.polarity);
   k.one = _mm256_set1_epi32(1);
@@ -568,7 +568,7 @@ bool fit_plane(const PlaneSums& p, double& a, double& gx, double& gy) noexcept {
 /// The edge-surface test's motion prior from the 5×5 block of kept events around a pixel: the points (dx, dy, s)
 /// with s = t_kept − t in [−T, horizon], the event's polarity, own pixel excluded. Point (dx, dy) is bit and index
 /// (dy + 2)·8 + dx + 2 of mask and s.
-struct KeptBlock {
+struct KeptBlock {  // NOLINT(cppcoreguidelines-pro-type-member-init): s is read only where mask is set
   PlaneSums sums;
   std::uint64_t mask = 0;
   std::int32_t oldest = 0;         // max |s| over the points (0 when none)
@@ -589,7 +589,7 @@ void scan_kept_scalar(const std::int32_t* centre, std::int64_t stride, std::int3
       const std::int32_t v = row[dx];
       const std::int32_t s = (v >> 1) - then;
       if (!kept_point(v, s, polarity, window_us, horizon_us) || (dx == 0 && dy == 0)) continue;
-      const auto i = static_cast<std::size_t>((dy + 2) * 8 + dx + 2);
+      const auto i = static_cast<std::size_t>(dy + 2) * 8 + static_cast<std::size_t>(dx + 2);
       out.mask |= std::uint64_t{1} << i;
       out.s[i] = s;
       out.oldest = std::max(out.oldest, std::abs(s));
@@ -631,7 +631,7 @@ __attribute__((target("avx2"))) void scan_kept_avx2(const std::int32_t* centre, 
     ss = _mm256_add_epi32(ss, sm);
     ys = _mm256_add_epi32(ys, _mm256_mullo_epi32(sm, dy_v));
     oldest = _mm256_max_epi32(oldest, _mm256_abs_epi32(sm));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.s.data() + (dy + 2) * 8), s);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.s.data() + static_cast<std::ptrdiff_t>(dy + 2) * 8), s);
     mask |= static_cast<std::uint64_t>(static_cast<std::uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(ok))))
             << ((dy + 2) * 8);
   }
@@ -983,12 +983,13 @@ bool Significance::accept(const Event& e) noexcept {
   }
   // The 8 neighbours' newest events (entry 0 of their rings); the youngest of them: max of (t − base)·2 + polarity,
   // halved (the shift keeps the order).
+  constexpr std::ptrdiff_t kTwoRings = std::ptrdiff_t{2} * kRing;
   const std::int32_t* up = ring + (c - s - 1) * kRing;
   const std::int32_t* mid = ring + (c - 1) * kRing;
   const std::int32_t* down = ring + (c + s - 1) * kRing;
   const std::int32_t youngest =
-      std::max(std::max(std::max(up[0], up[kRing]), std::max(up[2 * kRing], mid[0])),
-               std::max(std::max(mid[2 * kRing], down[0]), std::max(down[kRing], down[2 * kRing])));
+      std::max(std::max(std::max(up[0], up[kRing]), std::max(up[kTwoRings], mid[0])),
+               std::max(std::max(mid[kTwoRings], down[0]), std::max(down[kRing], down[kTwoRings])));
   const std::int32_t newest = std::min(kAgeCap, now - (youngest >> 1));  // the smallest neighbour age
   if (e.t_us >= count_from_us_) {
     zero_support_ += newest > kZeroSupportUs ? 1 : 0;
