@@ -220,6 +220,19 @@ __attribute__((target("avx2"), always_inline)) inline __m256i sort_layer_avx2(__
   return _mm256_blend_epi32(_mm256_min_epi32(v, p), _mm256_max_epi32(v, p), High);
 }
 
+/// rank += [a_j < a_i] + [a_j == a_i and j < i] for j = i + K (mod 8), lane by lane.
+template <int K>
+__attribute__((target("avx2"), always_inline)) inline __m256i rank_step_avx2(__m256i a, __m256i rank) noexcept {
+  const __m256i other =
+      _mm256_permutevar8x32_epi32(a, _mm256_setr_epi32(K & 7, (1 + K) & 7, (2 + K) & 7, (3 + K) & 7, (4 + K) & 7,
+                                                       (5 + K) & 7, (6 + K) & 7, (7 + K) & 7));
+  // j = i + K − 8 < i exactly in the lanes i >= 8 − K.
+  const __m256i before = _mm256_cmpgt_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(7 - K));
+  const __m256i counts =
+      _mm256_or_si256(_mm256_cmpgt_epi32(a, other), _mm256_and_si256(_mm256_cmpeq_epi32(a, other), before));
+  return _mm256_sub_epi32(rank, counts);
+}
+
 /// count_m += (age <= U_m) (u1: U_m + 1, age in every lane).
 __attribute__((target("avx2"), always_inline)) inline __m256i add(__m256i count, __m256i u1, __m256i age) noexcept {
   return _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, age));
@@ -293,7 +306,21 @@ __attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::i
   const int last = 2 + std::countr_zero(bits);  // the last direction examined
   ages = _mm256_permutevar8x32_epi32(ages, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
   ages = _mm256_blendv_epi8(ages, k.highest, _mm256_cmpgt_epi32(lane, _mm256_set1_epi32(last)));
-  // Sorted ascending (no-match markers last).
+  // The margin from each match's rank (its position in ascending order, ties by direction): max U_rank / max(u, 1),
+  // the same terms as over the sorted list, without waiting for the sort.
+  __m256i rank = _mm256_setzero_si256();
+  rank = rank_step_avx2<1>(ages, rank);
+  rank = rank_step_avx2<2>(ages, rank);
+  rank = rank_step_avx2<3>(ages, rank);
+  rank = rank_step_avx2<4>(ages, rank);
+  rank = rank_step_avx2<5>(ages, rank);
+  rank = rank_step_avx2<6>(ages, rank);
+  rank = rank_step_avx2<7>(ages, rank);
+  const __m256i valid = _mm256_cmpgt_epi32(k.highest, ages);
+  const __m256 ratio = _mm256_and_ps(_mm256_div_ps(_mm256_cvtepi32_ps(_mm256_permutevar8x32_epi32(u, rank)),
+                                                   _mm256_cvtepi32_ps(_mm256_max_epi32(ages, k.one))),
+                                     _mm256_castsi256_ps(valid));
+  // The past ages sorted ascending (no-match markers last), then zeros.
   __m256i v = ages;
   v = sort_layer_avx2<0xCC>(v, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5));
   v = sort_layer_avx2<0xF0>(v, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3));
@@ -302,12 +329,8 @@ __attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::i
   v = sort_layer_avx2<0x50>(v, _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7));
   v = sort_layer_avx2<0x54>(v, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));
   const __m256i matched = _mm256_cmpgt_epi32(k.highest, v);  // a prefix of the lanes
-  past_n = std::popcount(static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(matched))));
+  past_n = std::popcount(static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(valid))));
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_and_si256(v, matched));
-  // max_m U_m / max(u_(m), 1) over the matches (0 when none), as the walk computes each.
-  const __m256 ratio =
-      _mm256_and_ps(_mm256_div_ps(_mm256_cvtepi32_ps(u), _mm256_cvtepi32_ps(_mm256_max_epi32(v, k.one))),
-                    _mm256_castsi256_ps(matched));
   __m128 r = _mm_max_ps(_mm256_castps256_ps128(ratio), _mm256_extractf128_ps(ratio, 1));
   r = _mm_max_ps(r, _mm_movehl_ps(r, r));
   r = _mm_max_ss(r, _mm_shuffle_ps(r, r, 0x55));
