@@ -702,6 +702,61 @@ TEST(SignificanceSurface, SlowTiltedEdgeInNoiseStreamEqualsBatch) {
   EXPECT_LT(2 * (noise_with - std::min(noise_with, noise_without)), kept_with - kept_without);
 }
 
+TEST(SignificanceSurface, EveryKernelScansTheKeptBlockAsTheScalarScan) {
+  // The edge-surface test's scan of the 5×5 kept block (scalar, or AVX2 with per-lane plane sums) must give the same
+  // plane, decisions and score bits: slow tilted edges of both polarities in 3 Hz/px of BA (the test keeps events
+  // there), then the same at 130 Hz/px (it fits planes and rejects), with and without exact scores.
+  std::mt19937_64 rng(41);
+  std::vector<Event> ev;
+  std::int64_t base = 0;
+  for (const double rate : {3.0, 130.0}) {
+    std::vector<Event> part;
+    const std::int64_t span_us = rate > 100.0 ? 150'000 : 2'000'000;
+    for (int k = 0; k < 4; ++k) {
+      const double speed = 3.0 + 4.0 * k;  // px/s
+      const double tilt = 0.1 * (k - 1.5);
+      const int x0 = 40 + 70 * k;
+      for (int y = 50; y < 110; ++y) {
+        for (int x = x0; x < x0 + 8; ++x) {
+          const double t_s = 0.05 + ((x - x0) + tilt * (y - 50)) / speed;
+          const auto t = base + std::llround(t_s * 1e6);
+          if (t < base || t > base + span_us) continue;
+          part.push_back({t, static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(y), k % 2 == 0});
+        }
+      }
+    }
+    const auto n = static_cast<std::size_t>(rate * 346 * 120 * static_cast<double>(span_us) * 1e-6);
+    std::uniform_int_distribution<int> x(0, 345), y(20, 139);
+    std::uniform_int_distribution<std::int64_t> t(base, base + span_us);
+    for (std::size_t i = 0; i < n; ++i) {
+      part.push_back({t(rng), static_cast<std::uint16_t>(x(rng)), static_cast<std::uint16_t>(y(rng)), i % 2 == 0});
+    }
+    std::stable_sort(part.begin(), part.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    base = part.back().t_us + 1;
+    ev.insert(ev.end(), part.begin(), part.end());
+  }
+  for (const std::string exact : {"true", "false"}) {
+    const Settings settings = {{"initial_rate_hz", "3"}, {"exact_scores", exact}};
+    const Decisions ref = run_kernel("scalar", settings, ev);
+    ASSERT_EQ(ref.size(), ev.size());
+    for (const std::string kernel : {"sse4", ""}) {
+      const Decisions d = run_kernel(kernel, settings, ev);
+      EXPECT_EQ(d.keep, ref.keep) << "kernel '" << kernel << "', exact_scores " << exact;
+      ASSERT_EQ(d.score.size(), ref.score.size());
+      EXPECT_EQ(std::memcmp(d.score.data(), ref.score.data(), d.score.size() * sizeof(float)), 0)
+          << "kernel '" << kernel << "', exact_scores " << exact;
+    }
+  }
+  // The edge-surface test did keep events here (what the scans must agree on).
+  auto f = make_filter("significance", {{"initial_rate_hz", "3"}}, kDavis346);
+  (void)run_filter(*f, ev, 1000);
+  double surface = 0.0;
+  for (const auto& item : f->report()) {
+    if (item.key == "kept_surface") surface = item.value;
+  }
+  EXPECT_GT(surface, 10.0);
+}
+
 TEST(Significance, ListedWithItsParameters) {
   const FilterSpec* s = find_filter("significance");
   ASSERT_NE(s, nullptr);

@@ -1,6 +1,7 @@
 #include "evpipe/denoise/significance.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -168,72 +169,174 @@ __attribute__((target("sse4.1"))) std::size_t match_ages_sse4(const LineArgs& a,
   return n;
 }
 
-/// The same with AVX2: two directions per register (one per 128-bit half), all 8 thresholds in one register.
-__attribute__((target("avx2"))) std::size_t match_ages_avx2(const LineArgs& a,
-                                                            std::array<std::int32_t, 9>& found) noexcept {
-  const __m256i v_now = _mm256_set1_epi32(a.now);
-  const __m256i v_pol = _mm256_set1_epi32(a.polarity);
-  const __m256i v_one = _mm256_set1_epi32(1);
-  const __m256i v_past_window = _mm256_set1_epi32(a.line_us[7] + 1);
-  const __m256i v_jitter = _mm256_set1_epi32(a.jitter_us);
-  const __m256 v_precision = _mm256_set1_ps(a.precision);
-  const __m256i v_lowest = _mm256_set1_epi32(std::numeric_limits<std::int32_t>::min());
-  const __m256i v_highest = _mm256_set1_epi32(kNoMatch);
-  const __m256i u = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a.line_us));
-  const __m256i u1 = _mm256_add_epi32(u, v_one);
-  const __m256i need = _mm256_blendv_epi8(v_highest, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
-                                          _mm256_cmpgt_epi32(u, _mm256_setzero_si256()));
-  __m256i count = _mm256_setzero_si256();
-  std::size_t n = 0;
+/// Per-lane constants of the AVX2 edge-line kernel.
+struct LineConstsAvx2 {
+  __m256i now, pol, one, past_window, jitter, lowest, highest;
+  __m256 precision;
+};
+
+/// Directions i (low half) and i + 1 (high half) of match_ages_sse4's per-direction work: each half holds its
+/// direction's smallest matched age (kNoMatch when none) in every lane.
+__attribute__((target("avx2"), always_inline)) inline __m256i pair_ages_avx2(const LineArgs& a, const LineConstsAvx2& k,
+                                                                             std::size_t i) noexcept {
+  const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
+  const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
   const auto* ring = a.ring;
-  for (std::size_t i = 0; i < 8; i += 2) {
-    const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
-    const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
-    const __m256i r1 =
-        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off1) * 4)),
-                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off0) * 4)));
-    const __m256i r2 =
-        _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off1) * 4)),
-                         _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off0) * 4)));
-    const __m256i s1 = _mm256_min_epi32(_mm256_sub_epi32(v_now, _mm256_srai_epi32(r1, 1)), v_past_window);
-    const __m256i pol1 = _mm256_cmpeq_epi32(_mm256_and_si256(r1, v_one), v_pol);
-    const __m256i pol2 = _mm256_cmpeq_epi32(_mm256_and_si256(r2, v_one), v_pol);
-    const __m256i s2 = _mm256_blendv_epi8(v_highest, _mm256_sub_epi32(v_now, _mm256_srai_epi32(r2, 1)), pol2);
-    const __m256i tol =
-        _mm256_add_epi32(v_jitter, _mm256_cvttps_epi32(_mm256_mul_ps(v_precision, _mm256_cvtepi32_ps(s1))));
-    const __m256i twice = _mm256_add_epi32(s1, s1);
-    const __m256i hi = _mm256_add_epi32(twice, tol);
-    __m256i lo = _mm256_blendv_epi8(v_lowest, _mm256_sub_epi32(twice, tol), pol1);
-    lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, v_lowest, 12));  // within each half
-    lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, v_lowest, 8));
-    __m256i b = _mm256_shuffle_epi32(s2, 0x00);
-    __m256i none = _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi));
-    b = _mm256_shuffle_epi32(s2, 0x55);
-    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
-    b = _mm256_shuffle_epi32(s2, 0xAA);
-    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
-    b = _mm256_shuffle_epi32(s2, 0xFF);
-    none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
-    const __m256i valid = _mm256_andnot_si256(_mm256_or_si256(none, _mm256_cmpeq_epi32(s1, v_past_window)), pol1);
-    __m256i m = _mm256_blendv_epi8(v_highest, s1, valid);
-    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
-    m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));  // in every lane of each half
-    // Direction i (low half), then i + 1 (high half): the decision may fall between them.
-    const __m256i m0 = _mm256_permute2x128_si256(m, m, 0x00);
-    const std::int32_t age0 = _mm_cvtsi128_si32(_mm256_castsi256_si128(m));
-    found[n] = age0;
-    n += age0 != kNoMatch ? 1 : 0;
-    count = _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, m0));
-    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) break;
-    const __m256i m1 = _mm256_permute2x128_si256(m, m, 0x11);
-    const std::int32_t age1 = _mm_cvtsi128_si32(_mm256_extracti128_si256(m, 1));
-    found[n] = age1;
-    n += age1 != kNoMatch ? 1 : 0;
-    count = _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, m1));
-    if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) break;
-  }
-  return n;
+  const __m256i r1 = _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off1) * 4)),
+                                      _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - off0) * 4)));
+  const __m256i r2 =
+      _mm256_set_m128i(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off1) * 4)),
+                       _mm_loadu_si128(reinterpret_cast<const __m128i*>(ring + (a.centre - 2 * off0) * 4)));
+  const __m256i s1 = _mm256_min_epi32(_mm256_sub_epi32(k.now, _mm256_srai_epi32(r1, 1)), k.past_window);
+  const __m256i pol1 = _mm256_cmpeq_epi32(_mm256_and_si256(r1, k.one), k.pol);
+  const __m256i pol2 = _mm256_cmpeq_epi32(_mm256_and_si256(r2, k.one), k.pol);
+  const __m256i s2 = _mm256_blendv_epi8(k.highest, _mm256_sub_epi32(k.now, _mm256_srai_epi32(r2, 1)), pol2);
+  const __m256i tol =
+      _mm256_add_epi32(k.jitter, _mm256_cvttps_epi32(_mm256_mul_ps(k.precision, _mm256_cvtepi32_ps(s1))));
+  const __m256i twice = _mm256_add_epi32(s1, s1);
+  const __m256i hi = _mm256_add_epi32(twice, tol);
+  __m256i lo = _mm256_blendv_epi8(k.lowest, _mm256_sub_epi32(twice, tol), pol1);
+  lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, k.lowest, 12));  // within each half
+  lo = _mm256_max_epi32(lo, _mm256_alignr_epi8(lo, k.lowest, 8));
+  __m256i b = _mm256_shuffle_epi32(s2, 0x00);
+  __m256i none = _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi));
+  b = _mm256_shuffle_epi32(s2, 0x55);
+  none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+  b = _mm256_shuffle_epi32(s2, 0xAA);
+  none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+  b = _mm256_shuffle_epi32(s2, 0xFF);
+  none = _mm256_and_si256(none, _mm256_or_si256(_mm256_cmpgt_epi32(lo, b), _mm256_cmpgt_epi32(b, hi)));
+  const __m256i valid = _mm256_andnot_si256(_mm256_or_si256(none, _mm256_cmpeq_epi32(s1, k.past_window)), pol1);
+  __m256i m = _mm256_blendv_epi8(k.highest, s1, valid);
+  m = _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0x4E));
+  return _mm256_min_epi32(m, _mm256_shuffle_epi32(m, 0xB1));
 }
+
+/// One layer of disjoint compare-exchanges on 8 lanes: each lane meets `partner`'s, the lanes in `high` keep the
+/// larger value.
+template <int High>
+__attribute__((target("avx2"), always_inline)) inline __m256i sort_layer_avx2(__m256i v, __m256i partner) noexcept {
+  const __m256i p = _mm256_permutevar8x32_epi32(v, partner);
+  return _mm256_blend_epi32(_mm256_min_epi32(v, p), _mm256_max_epi32(v, p), High);
+}
+
+/// rank += [a_j < a_i] + [a_j == a_i and j < i] for j = i + K (mod 8), lane by lane.
+template <int K>
+__attribute__((target("avx2"), always_inline)) inline __m256i rank_step_avx2(__m256i a, __m256i rank) noexcept {
+  const __m256i other =
+      _mm256_permutevar8x32_epi32(a, _mm256_setr_epi32(K & 7, (1 + K) & 7, (2 + K) & 7, (3 + K) & 7, (4 + K) & 7,
+                                                       (5 + K) & 7, (6 + K) & 7, (7 + K) & 7));
+  // j = i + K − 8 < i exactly in the lanes i >= 8 − K.
+  const __m256i before = _mm256_cmpgt_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(7 - K));
+  const __m256i counts =
+      _mm256_or_si256(_mm256_cmpgt_epi32(a, other), _mm256_and_si256(_mm256_cmpeq_epi32(a, other), before));
+  return _mm256_sub_epi32(rank, counts);
+}
+
+/// count_m += (age <= U_m) (u1: U_m + 1, age in every lane).
+__attribute__((target("avx2"), always_inline)) inline __m256i add(__m256i count, __m256i u1, __m256i age) noexcept {
+  return _mm256_sub_epi32(count, _mm256_cmpgt_epi32(u1, age));
+}
+
+/// 1 when count_m > m − 1 for some m (need_m = m − 1, or never).
+__attribute__((target("avx2"), always_inline)) inline unsigned decided_avx2(__m256i count, __m256i need) noexcept {
+  return _mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0 ? 1U : 0U;
+}
+
+/// The edge-line test with AVX2 (Significance::edge_lines_scalar's decisions and scores): two directions per
+/// register (one per 128-bit half), all 8 thresholds in one register. The first two directions are decided one by
+/// one (an event with dense support stops there); otherwise the other six are matched at once and the first
+/// direction after which the counts "at least m matched ages <= U_m" decide is found from their running sums, the
+/// directions after it dropped (the walk stops there). The matched ages are sorted in a register (sort8's network)
+/// and the margin max_m U_m / u_(m) taken over them with the walk's float operations. past: the sorted matches, then
+/// zeros; returns the margin.
+__attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::int32_t* past, int& past_n) noexcept {
+  LineConstsAvx2 k;  // NOLINT(cppcoreguidelines-pro-type-member-init): every field set below
+  k.now = _mm256_set1_epi32(a.now);
+  k.pol = _mm256_set1_epi32(a.polarity);
+  k.one = _mm256_set1_epi32(1);
+  k.past_window = _mm256_set1_epi32(a.line_us[7] + 1);
+  k.jitter = _mm256_set1_epi32(a.jitter_us);
+  k.precision = _mm256_set1_ps(a.precision);
+  k.lowest = _mm256_set1_epi32(std::numeric_limits<std::int32_t>::min());
+  k.highest = _mm256_set1_epi32(kNoMatch);
+  const __m256i u = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a.line_us));
+  const __m256i u1 = _mm256_add_epi32(u, k.one);
+  const __m256i need = _mm256_blendv_epi8(k.highest, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+                                          _mm256_cmpgt_epi32(u, _mm256_setzero_si256()));
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i m01 = pair_ages_avx2(a, k, 0);
+  __m256i count = add(_mm256_setzero_si256(), u1, _mm256_permute2x128_si256(m01, m01, 0x00));
+  // Decided by the first one or two directions (dense support): one or two matches, no sorting needed.
+  const auto margin = [&a](std::size_t m, std::int32_t age) {
+    return static_cast<float>(a.line_us[m]) / static_cast<float>(std::max(age, 1));
+  };
+  if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) {
+    const std::int32_t d0 = _mm256_cvtsi256_si32(m01);  // matched (it decided)
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_setr_epi32(d0, 0, 0, 0, 0, 0, 0, 0));
+    past_n = 1;
+    return margin(0, d0);
+  }
+  count = add(count, u1, _mm256_permute2x128_si256(m01, m01, 0x11));
+  if (_mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0) {
+    const std::int32_t d0 = _mm256_cvtsi256_si32(m01);     // kNoMatch or matched
+    const std::int32_t d1 = _mm256_extract_epi32(m01, 4);  // matched (it decided)
+    const std::int32_t lo = std::min(d0, d1);
+    const std::int32_t hi = std::max(d0, d1);
+    const bool two = hi != kNoMatch;
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_setr_epi32(lo, two ? hi : 0, 0, 0, 0, 0, 0, 0));
+    past_n = two ? 2 : 1;
+    return std::max(margin(0, lo), two ? margin(1, hi) : 0.0F);
+  }
+  const __m256i m23 = pair_ages_avx2(a, k, 2);
+  const __m256i m45 = pair_ages_avx2(a, k, 4);
+  const __m256i m67 = pair_ages_avx2(a, k, 6);
+  // Ages in direction order: [d0 d2 d4 d6 | d1 d3 d5 d7], then permuted.
+  __m256i ages = _mm256_blend_epi32(_mm256_blend_epi32(_mm256_blend_epi32(m01, m23, 0x22), m45, 0x44), m67, 0x88);
+  // Running counts after directions 2..7: bit j − 2 set when decided after direction j.
+  const __m256i c2 = add(count, u1, _mm256_permute2x128_si256(m23, m23, 0x00));
+  const __m256i c3 = add(c2, u1, _mm256_permute2x128_si256(m23, m23, 0x11));
+  const __m256i c4 = add(c3, u1, _mm256_permute2x128_si256(m45, m45, 0x00));
+  const __m256i c5 = add(c4, u1, _mm256_permute2x128_si256(m45, m45, 0x11));
+  const __m256i c6 = add(c5, u1, _mm256_permute2x128_si256(m67, m67, 0x00));
+  const __m256i c7 = add(c6, u1, _mm256_permute2x128_si256(m67, m67, 0x11));
+  const unsigned bits = decided_avx2(c2, need) | decided_avx2(c3, need) << 1 | decided_avx2(c4, need) << 2 |
+                        decided_avx2(c5, need) << 3 | decided_avx2(c6, need) << 4 | decided_avx2(c7, need) << 5 |
+                        1U << 5;
+  const int last = 2 + std::countr_zero(bits);  // the last direction examined
+  ages = _mm256_permutevar8x32_epi32(ages, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
+  ages = _mm256_blendv_epi8(ages, k.highest, _mm256_cmpgt_epi32(lane, _mm256_set1_epi32(last)));
+  // The margin from each match's rank (its position in ascending order, ties by direction): max U_rank / max(u, 1),
+  // the same terms as over the sorted list, without waiting for the sort.
+  __m256i rank = _mm256_setzero_si256();
+  rank = rank_step_avx2<1>(ages, rank);
+  rank = rank_step_avx2<2>(ages, rank);
+  rank = rank_step_avx2<3>(ages, rank);
+  rank = rank_step_avx2<4>(ages, rank);
+  rank = rank_step_avx2<5>(ages, rank);
+  rank = rank_step_avx2<6>(ages, rank);
+  rank = rank_step_avx2<7>(ages, rank);
+  const __m256i valid = _mm256_cmpgt_epi32(k.highest, ages);
+  const __m256 ratio = _mm256_and_ps(_mm256_div_ps(_mm256_cvtepi32_ps(_mm256_permutevar8x32_epi32(u, rank)),
+                                                   _mm256_cvtepi32_ps(_mm256_max_epi32(ages, k.one))),
+                                     _mm256_castsi256_ps(valid));
+  // The past ages sorted ascending (no-match markers last), then zeros.
+  __m256i v = ages;
+  v = sort_layer_avx2<0xCC>(v, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5));
+  v = sort_layer_avx2<0xF0>(v, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3));
+  v = sort_layer_avx2<0xAA>(v, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6));
+  v = sort_layer_avx2<0x30>(v, _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7));
+  v = sort_layer_avx2<0x50>(v, _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7));
+  v = sort_layer_avx2<0x54>(v, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));
+  const __m256i matched = _mm256_cmpgt_epi32(k.highest, v);  // a prefix of the lanes
+  past_n = std::popcount(static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(valid))));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_and_si256(v, matched));
+  __m128 r = _mm_max_ps(_mm256_castps256_ps128(ratio), _mm256_extractf128_ps(ratio, 1));
+  r = _mm_max_ps(r, _mm_movehl_ps(r, r));
+  r = _mm_max_ss(r, _mm_shuffle_ps(r, r, 0x55));
+  return _mm_cvtss_f32(r);
+}
+
 /// The look-ahead's future half-lines (Significance::future_lines) with SSE4.1: per direction, every entry pair of
 /// p + d and p + 2d at once. The scalar loop stops at the first entry not later than the event (s <= 0); with the
 /// rings' times descending (time-ordered input) that is the same as masking those entries, and its last match is
@@ -362,7 +465,16 @@ __attribute__((target("avx2"))) bool joint_may_pass_avx2(const LineArgs& a, std:
     c_lo = _mm256_sub_epi32(c_lo, _mm256_cmpgt_epi32(v_lo, x_)); \
     c_hi = _mm256_sub_epi32(c_hi, _mm256_cmpgt_epi32(v_hi, x_)); \
   } while (false)
-  for (int k = 0; k < past_count; ++k) EVPIPE_COUNT_AVX2(_mm256_set1_epi32(std::max(past[k], 1)));
+  // The past ages: the first four without a loop (at most four in most events; a trip count that varies from event
+  // to event costs a mispredicted branch), any others one by one. Lanes past past_count never count.
+  const __m256i lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  __m256i p = _mm256_max_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(past)), v_one);
+  p = _mm256_blendv_epi8(p, v_highest, _mm256_cmpgt_epi32(lanes, _mm256_set1_epi32(past_count - 1)));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, _mm256_setzero_si256()));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, v_one));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, _mm256_set1_epi32(2)));
+  EVPIPE_COUNT_AVX2(_mm256_permutevar8x32_epi32(p, _mm256_set1_epi32(3)));
+  for (int k = 4; k < past_count; ++k) EVPIPE_COUNT_AVX2(_mm256_set1_epi32(std::max(past[k], 1)));
   for (std::size_t i = 0; i < 8; i += 2) {
     const std::int64_t off0 = kDy[i] * a.stride + kDx[i];
     const std::int64_t off1 = kDy[i + 1] * a.stride + kDx[i + 1];
@@ -476,6 +588,98 @@ bool fit_plane(const PlaneSums& p, double& a, double& gx, double& gy) noexcept {
   return true;
 }
 
+/// The edge-surface test's motion prior from the 5×5 block of kept events around a pixel: the points (dx, dy, s)
+/// with s = t_kept − t in [−T, horizon], the event's polarity, own pixel excluded. Point (dx, dy) is bit and index
+/// (dy + 2)·8 + dx + 2 of mask and s.
+struct KeptBlock {  // NOLINT(cppcoreguidelines-pro-type-member-init): s is read only where mask is set
+  PlaneSums sums;
+  std::uint64_t mask = 0;
+  std::int32_t oldest = 0;         // max |s| over the points (0 when none)
+  std::array<std::int32_t, 40> s;  // NOLINT(cppcoreguidelines-pro-type-member-init): read only where mask is set
+};
+
+/// One point's test (the reference; scan_kept_avx2 computes the same lane by lane).
+inline bool kept_point(std::int32_t v, std::int32_t s, int polarity, std::int32_t window_us,
+                       std::int32_t horizon_us) noexcept {
+  return (v != kNever) & ((v & 1) == polarity) & (s >= -window_us) & (s <= horizon_us);
+}
+
+void scan_kept_scalar(const std::int32_t* centre, std::int64_t stride, std::int32_t then, int polarity,
+                      std::int32_t window_us, std::int32_t horizon_us, KeptBlock& out) noexcept {
+  for (int dy = -2; dy <= 2; ++dy) {
+    const std::int32_t* row = centre + dy * stride;
+    for (int dx = -2; dx <= 2; ++dx) {
+      const std::int32_t v = row[dx];
+      const std::int32_t s = (v >> 1) - then;
+      if (!kept_point(v, s, polarity, window_us, horizon_us) || (dx == 0 && dy == 0)) continue;
+      const auto i = static_cast<std::size_t>(dy + 2) * 8 + static_cast<std::size_t>(dx + 2);
+      out.mask |= std::uint64_t{1} << i;
+      out.s[i] = s;
+      out.oldest = std::max(out.oldest, std::abs(s));
+      out.sums.add(dx, dy, s, 1);
+    }
+  }
+}
+
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+/// The same with AVX2: a row of the block per register (5 of 8 lanes; kept_ is padded so that the 3 lanes past the
+/// last row's end stay inside it), per-lane sums over the rows, the plane sums from them in 64 bits.
+__attribute__((target("avx2"))) void scan_kept_avx2(const std::int32_t* centre, std::int64_t stride, std::int32_t then,
+                                                    int polarity, std::int32_t window_us, std::int32_t horizon_us,
+                                                    KeptBlock& out) noexcept {
+  const __m256i v_never = _mm256_set1_epi32(kNever);
+  const __m256i v_one = _mm256_set1_epi32(1);
+  const __m256i v_pol = _mm256_set1_epi32(polarity);
+  const __m256i v_then = _mm256_set1_epi32(then);
+  const __m256i v_oldest = _mm256_set1_epi32(-window_us);
+  const __m256i v_horizon = _mm256_set1_epi32(horizon_us);
+  const __m256i lanes = _mm256_setr_epi32(-1, -1, -1, -1, -1, 0, 0, 0);
+  const __m256i centre_lanes = _mm256_setr_epi32(-1, -1, 0, -1, -1, 0, 0, 0);
+  // Per lane (dx): the count, Σ dy, Σ dy², Σ s, Σ dy·s, max |s| of the points.
+  __m256i n = _mm256_setzero_si256();
+  __m256i ny = n, nyy = n, ss = n, ys = n, oldest = n;
+  std::uint64_t mask = 0;
+  for (int dy = -2; dy <= 2; ++dy) {
+    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(centre + dy * stride - 2));
+    const __m256i s = _mm256_sub_epi32(_mm256_srai_epi32(v, 1), v_then);
+    __m256i ok = _mm256_andnot_si256(_mm256_cmpeq_epi32(v, v_never), dy == 0 ? centre_lanes : lanes);
+    ok = _mm256_and_si256(ok, _mm256_cmpeq_epi32(_mm256_and_si256(v, v_one), v_pol));
+    ok = _mm256_andnot_si256(_mm256_or_si256(_mm256_cmpgt_epi32(v_oldest, s), _mm256_cmpgt_epi32(s, v_horizon)), ok);
+    const __m256i sm = _mm256_and_si256(s, ok);
+    const __m256i dy_v = _mm256_set1_epi32(dy);
+    const __m256i one = _mm256_and_si256(ok, v_one);
+    n = _mm256_add_epi32(n, one);
+    ny = _mm256_add_epi32(ny, _mm256_mullo_epi32(one, dy_v));
+    nyy = _mm256_add_epi32(nyy, _mm256_mullo_epi32(one, _mm256_set1_epi32(dy * dy)));
+    ss = _mm256_add_epi32(ss, sm);
+    ys = _mm256_add_epi32(ys, _mm256_mullo_epi32(sm, dy_v));
+    oldest = _mm256_max_epi32(oldest, _mm256_abs_epi32(sm));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.s.data() + static_cast<std::ptrdiff_t>(dy + 2) * 8), s);
+    mask |= static_cast<std::uint64_t>(static_cast<std::uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(ok))))
+            << ((dy + 2) * 8);
+  }
+  out.mask = mask;
+  if (std::popcount(mask) < 3) {  // no fit: only the count matters
+    out.sums.n = std::popcount(mask);
+    return;
+  }
+  // |s| <= max(T, horizon) <= 1e8 µs: the per-lane sums over 5 rows fit 32 bits, the totals are taken in 64.
+  std::array<std::int32_t, 8> a_n{}, a_ny{}, a_nyy{}, a_ss{}, a_ys{}, a_old{};
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_n.data()), n);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_ny.data()), ny);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_nyy.data()), nyy);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_ss.data()), ss);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_ys.data()), ys);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(a_old.data()), oldest);
+  PlaneSums& p = out.sums;
+  for (std::size_t l = 0; l < 5; ++l) {
+    const std::int64_t dx = static_cast<std::int64_t>(l) - 2;
+    p.n += a_n[l], p.sx += dx * a_n[l], p.sy += a_ny[l], p.sxx += dx * dx * a_n[l], p.sxy += dx * a_ny[l];
+    p.syy += a_nyy[l], p.ss += a_ss[l], p.sxs += dx * a_ss[l], p.sys += a_ys[l];
+    out.oldest = std::max(out.oldest, a_old[l]);
+  }
+}
+#endif
 }  // namespace
 
 Significance::Significance(const SensorGeometry& geometry, SignificanceOptions options)
@@ -517,8 +721,10 @@ Significance::Significance(const SensorGeometry& geometry, SignificanceOptions o
 void Significance::allocate() {
   // The filter's only per-pixel allocation (kRing · 4 bytes per padded pixel).
   ring_.resize(static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad) * kRing));
-  kept_.resize(
-      options_.edge_line && options_.surface ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad)) : 0);
+  // kept_: one per padded pixel, and 8 more (never written) that the vector scan of the block's last row may read.
+  kept_.resize(options_.edge_line && options_.surface
+                   ? static_cast<std::size_t>(stride_ * (geometry_.height + 2 * kPad)) + 8
+                   : 0);
 }
 
 void Significance::reset() noexcept {
@@ -737,7 +943,8 @@ float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarit
 #if defined(EVPIPE_SIGNIFICANCE_X86)
   const LineArgs args{ring_.data(), stride_,   static_cast<std::int64_t>(centre), now, polarity, line_us_.data(),
                       jitter_us_,   precision_};
-  n = kernel_ == kAvx2 ? match_ages_avx2(args, found) : match_ages_sse4(args, found);
+  if (kernel_ == kAvx2) return match_lines_avx2(args, past_ages_.data(), past_n_);
+  n = match_ages_sse4(args, found);
 #endif
   // The margin max_m U_m / u_(m) over the matches examined, with the scalar walk's float operations; few matches
   // (the common case) need no sorting network.
@@ -790,7 +997,6 @@ bool Significance::accept(const Event& e) noexcept {
   const std::int32_t* ring = ring_.data();
   const auto s = static_cast<std::int64_t>(stride_);
   const std::int64_t c = static_cast<std::int64_t>(centre);
-  const std::array<std::int64_t, 8> nb = {c - s - 1, c - s, c - s + 1, c - 1, c + 1, c + s - 1, c + s, c + s + 1};
   // The 5×5 block's rings (5 rows of 5·kRing·4 bytes): start every cache line now, the tests below read them in
   // an order that jumps between rows.
   for (std::int64_t dy = -2; dy <= 2; ++dy) {
@@ -798,19 +1004,26 @@ bool Significance::accept(const Event& e) noexcept {
     __builtin_prefetch(row);
     __builtin_prefetch(row + 5 * kRing * sizeof(std::int32_t) - 1);
   }
-  std::array<std::int32_t, 8> age{};
-  std::int32_t newest = kAgeCap;
-  for (std::size_t i = 0; i < 8; ++i) {
-    age[i] = std::min(kAgeCap, now - (ring[nb[i] * kRing] >> 1));
-    newest = std::min(newest, age[i]);
-  }
+  // The 8 neighbours' newest events (entry 0 of their rings); the youngest of them: max of (t − base)·2 + polarity,
+  // halved (the shift keeps the order).
+  constexpr std::ptrdiff_t kTwoRings = std::ptrdiff_t{2} * kRing;
+  const std::int32_t* up = ring + (c - s - 1) * kRing;
+  const std::int32_t* mid = ring + (c - 1) * kRing;
+  const std::int32_t* down = ring + (c + s - 1) * kRing;
+  const std::int32_t youngest =
+      std::max(std::max(std::max(up[0], up[kRing]), std::max(up[kTwoRings], mid[0])),
+               std::max(std::max(mid[kTwoRings], down[0]), std::max(down[kRing], down[kTwoRings])));
+  const std::int32_t newest = std::min(kAgeCap, now - (youngest >> 1));  // the smallest neighbour age
   if (e.t_us >= count_from_us_) {
-    if (newest > kZeroSupportUs) ++zero_support_;
-    if (newest > kShortZeroSupportUs) ++short_zero_support_;
+    zero_support_ += newest > kZeroSupportUs ? 1 : 0;
+    short_zero_support_ += newest > kShortZeroSupportUs ? 1 : 0;
     ++events_;
   }
   float ratio = 0.0F;
   if (options_.recency_max_us > 0) {
+    const std::array<std::int64_t, 8> nb = {c - s - 1, c - s, c - s + 1, c - 1, c + 1, c + s - 1, c + s, c + s + 1};
+    std::array<std::int32_t, 8> age{};
+    for (std::size_t i = 0; i < 8; ++i) age[i] = std::min(kAgeCap, now - (ring[nb[i] * kRing] >> 1));
     sort8(age);
     for (std::size_t k = 0; k < 8; ++k) {
       ratio = std::max(ratio, static_cast<float>(recency_us_[k]) / static_cast<float>(std::max(age[k], 1)));
@@ -859,11 +1072,11 @@ void Significance::prefetch_block(const Event& e) const noexcept {
     __builtin_prefetch(row);
     __builtin_prefetch(row + std::size_t{3} * kRing * sizeof(std::int32_t) - 1);
   }
-  if (!kept_.empty()) {  // the edge-surface test's kept events (5×5 block: 5 rows of 20 bytes)
+  if (!kept_.empty()) {  // the edge-surface test's kept events (5×5 block: 5 rows of 20 bytes, 32 read)
     for (std::int64_t dy = -2; dy <= 2; ++dy) {
       const char* row = reinterpret_cast<const char*>(kept_.data() + c + dy * stride_ - 2);
       __builtin_prefetch(row);
-      __builtin_prefetch(row + 5 * sizeof(std::int32_t) - 1);
+      __builtin_prefetch(row + 8 * sizeof(std::int32_t) - 1);  // the vector scan reads 8
     }
   }
 }
@@ -994,31 +1207,21 @@ float Significance::surface_ratio(const Event& e, std::int32_t horizon_us) const
 float Significance::surface_ratio_at(std::size_t centre, std::int32_t then, int polarity,
                                      std::int32_t horizon_us) const noexcept {
   // The motion prior: the kept events of the 5×5 block (own pixel excluded) of the event's polarity within
-  // [t − T, t + horizon]; their plane s(q) = a + g·q (s relative to t, µs) gives the local normal flow.
-  constexpr int kBlock = 24;
-  std::array<std::int32_t, kBlock> ps{};
-  std::array<std::int8_t, kBlock> pq{};  // index (dy + 2)·5 + dx + 2
-  int n = 0;
+  // [t − T, t + horizon]; their plane s(q) = a + g·q (s relative to t, µs) gives the local normal flow. The scan
+  // gives their integer plane sums (order-free: every kernel the same fit), a bit per point and their times.
+  KeptBlock block;
+#if defined(EVPIPE_SIGNIFICANCE_X86)
+  if (kernel_ == kAvx2) {
+    scan_kept_avx2(kept_.data() + centre, stride_, then, polarity, window_us_, horizon_us, block);
+  } else {
+    scan_kept_scalar(kept_.data() + centre, stride_, then, polarity, window_us_, horizon_us, block);
+  }
+#else
+  scan_kept_scalar(kept_.data() + centre, stride_, then, polarity, window_us_, horizon_us, block);
+#endif
+  const PlaneSums& sums = block.sums;
+  if (sums.n < 3) return 0.0F;
   const auto c = static_cast<std::int64_t>(centre);
-  for (int dy = -2; dy <= 2; ++dy) {  // branch-free: every entry is written, n advances for the ones that count
-    const std::int32_t* row = kept_.data() + c + dy * stride_;
-    for (int dx = -2; dx <= 2; ++dx) {
-      const std::int32_t v = row[dx];
-      const std::int32_t s = (v >> 1) - then;
-      const bool ok =
-          (v != kNever) & ((v & 1) == polarity) & (s >= -window_us_) & (s <= horizon_us) & ((dx != 0) | (dy != 0));
-      const auto nu = static_cast<std::size_t>(std::min(n, kBlock - 1));
-      ps[nu] = s;
-      pq[nu] = static_cast<std::int8_t>((dy + 2) * 5 + dx + 2);
-      n += ok ? 1 : 0;
-    }
-  }
-  if (n < 3) return 0.0F;
-  PlaneSums sums;
-  for (int i = 0; i < n; ++i) {
-    const auto iu = static_cast<std::size_t>(i);
-    sums.add(pq[iu] % 5 - 2, pq[iu] / 5 - 2, ps[iu], 1);
-  }
   double a = 0.0;
   double gx = 0.0;
   double gy = 0.0;
@@ -1027,20 +1230,19 @@ float Significance::surface_ratio_at(std::size_t centre, std::int32_t then, int 
   // the widest tolerance among them. Otherwise their slots are empty (K comes from other events alone), which the
   // test would not keep with fewer slots than kept points; skipped without reading the rings.
   const double eps = options_.edge_precision_px;
-  std::int32_t oldest = 0;
-  for (int i = 0; i < n; ++i) oldest = std::max(oldest, std::abs(ps[static_cast<std::size_t>(i)]));
-  if (std::abs(a) > jitter_us_ + eps * oldest) return 0.0F;
+  if (std::abs(a) > jitter_us_ + eps * block.oldest) return 0.0F;
   // Once more without the points off the plane by more than the edge tolerance δ(|g·q|) (a kept noise event,
   // another crossing), if three remain.
   PlaneSums inliers = sums;
-  for (int i = 0; i < n; ++i) {
-    const auto iu = static_cast<std::size_t>(i);
-    const int dx = pq[iu] % 5 - 2;
-    const int dy = pq[iu] / 5 - 2;
+  for (std::uint64_t bits = block.mask; bits != 0; bits &= bits - 1) {
+    const auto i = static_cast<std::size_t>(__builtin_ctzll(bits));
+    const int dx = static_cast<int>(i % 8) - 2;
+    const int dy = static_cast<int>(i / 8) - 2;
     const double tau = gx * dx + gy * dy;
-    if (std::abs(ps[iu] - a - tau) > jitter_us_ + eps * std::abs(tau)) inliers.add(dx, dy, ps[iu], -1);
+    const std::int32_t si = block.s[i];
+    if (std::abs(si - a - tau) > jitter_us_ + eps * std::abs(tau)) inliers.add(dx, dy, si, -1);
   }
-  if (inliers.n < n && inliers.n >= 3) {
+  if (inliers.n < sums.n && inliers.n >= 3) {
     double a2 = 0.0;
     double gx2 = 0.0;
     double gy2 = 0.0;
@@ -1092,9 +1294,12 @@ class SignificanceFilter final : public Filter {
 
   [[nodiscard]] std::string_view name() const noexcept override { return "significance"; }
   void push(EventSpan events, Decisions& out) override {
-    for (const Event& e : events) {
+    out.keep.reserve(out.keep.size() + size_ + events.size());
+    out.score.reserve(out.score.size() + size_ + events.size());
+    for (std::size_t i = 0; i < events.size(); ++i) {
+      const Event& e = events[i];
       decide_before(e.t_us - lookahead_us_);
-      release(out);
+      if ((i & (kReleaseEvery - 1)) == 0) release(out);  // decided events leave in input order, a block at a time
       const bool keep = impl_.accept(e);
       const float score = impl_.last_score();
       if (size_ == 0 && keep) {  // nothing waits: out at once
@@ -1131,6 +1336,7 @@ class SignificanceFilter final : public Filter {
 
  private:
   static constexpr std::size_t kPrefetchAhead = 4;
+  static constexpr std::size_t kReleaseEvery = 256;
   static constexpr std::uint8_t kPending = 0;
   static constexpr std::uint8_t kKeep = 1;
   static constexpr std::uint8_t kDrop = 2;
@@ -1142,12 +1348,13 @@ class SignificanceFilter final : public Filter {
     std::array<std::int32_t, 8> past{};
   };
 
-  Entry& at(std::size_t i) noexcept { return fifo_[(head_ + i) & (fifo_.size() - 1)]; }
+  Entry& at(std::size_t i) noexcept { return fifo_[(head_ + i) & mask_]; }
   Entry& append() {
     if (size_ == fifo_.size()) {  // grow (power of two), unrolling the ring
       std::vector<Entry> bigger(std::max<std::size_t>(1024, 2 * fifo_.size()));
       for (std::size_t i = 0; i < size_; ++i) bigger[i] = at(i);
       fifo_.swap(bigger);
+      mask_ = fifo_.size() - 1;
       head_ = 0;
     }
     return at(size_++);
@@ -1190,7 +1397,7 @@ class SignificanceFilter final : public Filter {
       if (x.state == kPending) break;
       out.keep.push_back(x.state == kKeep ? 1 : 0);
       out.score.push_back(x.score);
-      head_ = (head_ + 1) & (fifo_.size() - 1);
+      head_ = (head_ + 1) & mask_;
       --size_;
       next_ = next_ > 0 ? next_ - 1 : 0;
     }
@@ -1200,6 +1407,7 @@ class SignificanceFilter final : public Filter {
   std::int64_t lookahead_us_;
   bool exact_scores_;
   std::vector<Entry> fifo_;
+  std::size_t mask_ = 0;  // fifo_.size() − 1
   std::size_t head_ = 0;
   std::size_t size_ = 0;
   std::size_t next_ = 0;  // first entry not examined by decide_before

@@ -43,7 +43,8 @@
 // Speed: the edge-line test reads each direction's two rings whole (16 bytes each) and matches all their pairs at
 // once (SSE4.1, or AVX2 two directions at a time, chosen at run time from the CPU; the look-ahead's future
 // half-lines likewise with SSE4.1), which on time-ordered input is the same test as the scalar walk along the
-// rings: the same decisions and scores. The scalar walk remains the
+// rings: the same decisions and scores (the AVX2 kernel: the first two directions one by one, the other six at once;
+// the edge-surface test's scan of the kept block likewise, in integer plane sums). The scalar walk remains the
 // reference, used for out-of-order input and on other CPUs (EVPIPE_SIGNIFICANCE_KERNEL=scalar|sse4 forces it or
 // SSE4.1, for tests and benchmarks).
 
@@ -120,7 +121,8 @@ class Significance {
   /// p + d; p + 2d's are not read): a future half-line's matched s is one of p + d's entries of the event's polarity
   /// with 0 < s <= L and 2s − tol(s) <= L (its p + 2d partner is within L), so each direction's smallest such s (its
   /// candidate) is <= its match, and #{merged ages <= V_m} <= #{past ages <= V_m} + #{candidates <= V_m}. The joint
-  /// test passes iff that count reaches m for some m; when the bound's does not, it cannot.
+  /// test passes iff that count reaches m for some m; when the bound's does not, it cannot. past_ages: 8 readable
+  /// values (past_line_ages_us()'s array), the first past_count used.
   [[nodiscard]] bool joint_may_pass(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
   /// Starts fetching the rings joint_ratio(e, ...) reads first.
   void prefetch_block(const Event& e) const noexcept;
