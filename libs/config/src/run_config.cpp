@@ -153,6 +153,11 @@ const std::vector<Key>& keys() {
     t.push_back(str_key("pose.init_worker", &R::pose, &PoseFilesConfig::init_worker, true, 8, {"auto", "on", "off"}));
     t.push_back(int_key("pose.init_worker_nice", &R::pose, &PoseFilesConfig::init_worker_nice, 0, 19,
                         "nice increments are 0-19"));
+    t.push_back(bool_key("pose.fuse_windows", &R::pose, &PoseFilesConfig::fuse_windows));
+    t.push_back(
+        real_key("pose.max_acceleration_m_s2", &R::pose, &PoseFilesConfig::max_acceleration_m_s2, 0.001, 1000.0));
+    t.push_back(real_key("pose.max_angular_acceleration_deg_s2", &R::pose,
+                         &PoseFilesConfig::max_angular_acceleration_deg_s2, 0.01, 100'000.0));
     t.push_back(bool_key("lcm.enabled", &R::lcm, &LcmConfig::enabled));
     t.push_back(str_key("lcm.url", &R::lcm, &LcmConfig::url, false, 1024));
     t.push_back(str_key("lcm.pose_channel", &R::lcm, &LcmConfig::pose_channel, true, kLcmChannelMax));
@@ -696,6 +701,9 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "lost_after_windows" << YAML::Value << pose.lost_after_windows;
   out << YAML::Key << "init_worker" << YAML::Value << pose.init_worker;
   out << YAML::Key << "init_worker_nice" << YAML::Value << pose.init_worker_nice;
+  out << YAML::Key << "fuse_windows" << YAML::Value << pose.fuse_windows;
+  out << YAML::Key << "max_acceleration_m_s2" << YAML::Value << pose.max_acceleration_m_s2;
+  out << YAML::Key << "max_angular_acceleration_deg_s2" << YAML::Value << pose.max_angular_acceleration_deg_s2;
   out << YAML::EndMap;
   out << YAML::Key << "lcm" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "enabled" << YAML::Value << lcm.enabled;

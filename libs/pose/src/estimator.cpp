@@ -54,6 +54,7 @@ void EstimatorOptions::validate() const {
     throw std::invalid_argument(
         fmt::format("pose hold: hold_entry_max_motion_px must be >= 0 and hold_contradicted_windows >= 1, got {} / {}",
                     hold_entry_max_motion_px, hold_contradicted_windows));
+  filter.validate();
 }
 
 PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model,
@@ -62,7 +63,8 @@ PoseEstimator::PoseEstimator(camera::CameraModel camera, camera::LineModel model
       map_(camera_),
       model_(std::move(model)),
       prior_(std::move(prior)),
-      options_(std::move(options)) {
+      options_(std::move(options)),
+      filter_(options_.filter) {
   options_.validate();
   if (model_.segments_m.size() < 4)
     throw std::invalid_argument(
@@ -82,6 +84,8 @@ void PoseEstimator::reset() {
   last_published_t_us_.reset();
   recent_.clear();
   track_ = TrackState{};
+  filter_.reset();
+  fused_ = {};
   standstill_.stop();
   set_status(TrackStatus::initialising);
 }
@@ -398,9 +402,42 @@ PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
 
 PoseEstimate PoseEstimator::counted(PoseEstimate out) {
   ++counters_.windows_by_status[static_cast<int>(out.status)];
+  fuse(out);
   // A published tracking pose is the track's newest pose (an initialisation's, or an update's).
   if (out.pose_valid && out.status == TrackStatus::tracking && track_.last) last_published_t_us_ = track_.last->t_us;
   return out;
+}
+
+void PoseEstimator::fuse(PoseEstimate& out) {
+  if (!options_.filter.enabled) return;
+  if (out.status == TrackStatus::holding && out.pose_valid) {
+    // The held pose is a measured one: hold its fusion (the filter then knows the target is still).
+    for (std::size_t i = 0; i < fused_.size(); ++i) {
+      if (!fused_[i] || fused_[i]->t_us != out.t_last_update_us) continue;
+      out.T_cam_model = fused_[i]->pose;
+      out.covariance = fused_covariance_[i];
+      filter_.hold(out.t_last_update_us, out.T_cam_model, out.covariance);
+      return;
+    }
+    return;
+  }
+  if (out.status != TrackStatus::tracking) {
+    // Initialising or lost: the next track starts afresh.
+    filter_.reset();
+    fused_ = {};
+    return;
+  }
+  // A tracking window that measured nothing (not valid) leaves the filter as it is: the next measurement predicts
+  // over the gap.
+  if (!out.pose_valid || !out.covariance_known || out.t_last_update_us != out.t_us) return;
+  if (out.initialised_now) filter_.reset();
+  const FusedPose f = filter_.update(out.t_us, out.T_cam_model, out.covariance, out.events_span_us);
+  out.T_cam_model = f.T_cam_model;
+  out.covariance = f.covariance;
+  fused_[1] = fused_[0];
+  fused_covariance_[1] = fused_covariance_[0];
+  fused_[0] = camera::StampedPose{out.t_us, f.T_cam_model};
+  fused_covariance_[0] = f.covariance;
 }
 
 PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, EventSpan history) {
@@ -497,6 +534,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
   const TrackUpdate u = track_window(events, map_, model_, predicted, options_.track, motion);
   out.t_us = t_end_us;
   out.window_events = events.size();
+  if (!events.empty()) out.events_span_us = events.back().t_us - events.front().t_us + 1;
   // A target cannot jump: an update far from the prediction has locked onto other edges (a wrong local
   // minimum the per-window health test cannot see).
   // Fitted, but the verification could not judge it (ran, failed, no symmetric alternative explains it better).
@@ -765,6 +803,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   PoseEstimate out;
   out.t_us = t_end_us;
   out.window_events = events.size();
+  if (!events.empty()) out.events_span_us = events.back().t_us - events.front().t_us + 1;
   if (u.healthy && !jumped) {
     track_.unhealthy_in_a_row = 0;
     track_.previous.reset();

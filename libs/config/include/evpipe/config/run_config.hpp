@@ -131,6 +131,11 @@ struct PoseFilesConfig {
   /// Nice increment of that worker thread (0-19): it uses what the stages leave, but under contention from other
   /// processes a high value also slows the attempt (nice 10 gets ~10 % of a core shared with a nice-0 process).
   int init_worker_nice = 10;
+  /// Fuse each track's window poses over time (a constant-velocity Kalman filter, docs/algorithms.md "Fusion over
+  /// windows"); its motion model is the target's largest linear and angular acceleration.
+  bool fuse_windows = true;
+  double max_acceleration_m_s2 = 1.0;
+  double max_angular_acceleration_deg_s2 = 90.0;
 };
 
 struct LcmConfig {

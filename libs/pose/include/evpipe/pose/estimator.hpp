@@ -17,11 +17,13 @@
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/core/event.hpp"
 #include "evpipe/pose/initialiser.hpp"
+#include "evpipe/pose/pose_filter.hpp"
 #include "evpipe/pose/projection.hpp"
 #include "evpipe/pose/standstill.hpp"
 #include "evpipe/pose/tracker.hpp"
 #include "evpipe/pose/types.hpp"
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -93,6 +95,9 @@ struct EstimatorOptions {
   /// unhealthy. false: every unhealthy update counts (the behaviour before holding).
   bool hold = true;
   StandstillOptions standstill;
+  /// Fusion of the track's window poses over time (pose_filter.hpp): the published tracking and holding poses are
+  /// the filter's, with its covariance; the tracker itself still starts each window from its own poses.
+  PoseFilterOptions filter;
   /// A hold starts only when the last tracked motion moved the model's image by at most this per window (a
   /// target that was moving fast cannot have stopped within one window; its events vanishing means something
   /// else).
@@ -141,7 +146,8 @@ struct PoseEstimate {
   Covariance6 covariance{Covariance6::Zero()};
   bool covariance_known{false};
   TrackStatus status{TrackStatus::initialising};
-  std::size_t window_events{0};  ///< events the estimate used (a sparse window is extended, see options)
+  std::size_t window_events{0};    ///< events the estimate used (a sparse window is extended, see options)
+  std::int64_t events_span_us{0};  ///< the time those events span (a measured pose; 0 otherwise)
   std::size_t inliers{0};
   double sigma_px{0.0};
   bool initialised_now{false};  ///< this window ran a successful (re-)initialisation
@@ -348,6 +354,13 @@ class PoseEstimator {
   /// Background activity near the model (events per pixel per second), measured by the last support test
   /// (signal_near) or hold window: what the noise explains of an accumulated history's events.
   double noise_rate_hz_{0.0};
+  /// Fusion of the published poses (options_.filter), and the last two fused ones by measurement time (a hold
+  /// holds the last pose, or the one before when the last moved too fast to have stopped: try_hold).
+  PoseFilter filter_;
+  std::array<std::optional<camera::StampedPose>, 2> fused_;
+  std::array<Covariance6, 2> fused_covariance_{Covariance6::Zero(), Covariance6::Zero()};
+  /// The published pose of a window: the filter's fusion of a measured tracking pose, the fused pose a hold holds.
+  void fuse(PoseEstimate& out);
   EstimatorCounters counters_;
 };
 
