@@ -440,6 +440,12 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
   const Eigen::Matrix3d R = T.rotation();
   std::size_t j = 0;
   std::vector<double> expected(cells.size(), 0.0);  // each cell's expected share (its segment's)
+  struct Unsupported {
+    std::size_t first, count;
+    double expected_share;
+    std::size_t model_index;
+  };
+  std::vector<Unsupported> unsupported;  // required segments without their support
   for (SegmentSupport& s : segs) {
     s.normal_motion_px /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
     double own = 0.0;  // the segment's mean own share of its bands
@@ -467,6 +473,9 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     // (support elsewhere may be clutter the pose happens to cross), one measurement of the edge's position
     // across the cell each.
     const bool counts_for_pose = s.required && seg_ok;
+    if (s.required && static_cast<double>(s.supported) <= by_noise) {
+      unsupported.push_back({j, s.cells, expected_share, s.model_index});
+    }
     for (std::size_t k = 0; k < s.cells; ++k, ++j) {
       if (!supported[j] || !counts_for_pose) continue;
       const Cell& c = cells[j];
@@ -479,6 +488,79 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
       // The cell's normal in normalised coordinates ~ the pixel normal (fx ~ fy; distortion is local).
       const Vector6d g = (c.n_px.transpose() * Jp * dP).transpose();
       H.noalias() += g * g.transpose() / (sigma_n * sigma_n);
+    }
+  }
+  // A required segment without support whose edge shows beside it, parallel within displaced_max_px: the events
+  // of that edge are there, the pose puts it elsewhere. Its cells are moved across the segment in whole pixels
+  // (from beyond the band and its side strips, so that the moved band does not count the segment's own pixels) and
+  // judged as at the pose, with the same threshold and the same rule for the segment (min_segment_coverage of its
+  // expected share, more than noise alone gives); moved cells near any projected model segment are not judged
+  // (another segment of the model may run there).
+  if (o.displaced_max_px > 0.0 && !unsupported.empty()) {
+    const double near_px = o.band_px + o.side_gap_px + o.side_width_px;
+    // Every projected piece of the model, short segments too (those with fewer than min_cells cells are not judged
+    // but their edges are there all the same).
+    VerifyOptions every = o;
+    every.min_cells = 1;
+    const std::vector<Cell> pieces = build_cells(img, camera, model, T, every, 0.0, nullptr, false, false);
+    const std::vector<std::uint8_t> near_model = near_mask(pieces, near_px, camera.width, camera.height);
+    const int first_offset = static_cast<int>(std::ceil(2.0 * near_px));
+    for (const Unsupported& u : unsupported) {
+      for (int d = first_offset; d <= static_cast<int>(o.displaced_max_px) && res.displaced_segment < 0; ++d) {
+        for (const int sign : {1, -1}) {
+          std::size_t judged = 0, shown = 0;
+          for (std::size_t k = u.first; k < u.first + u.count; ++k) {
+            const Cell& c = cells[k];
+            const Eigen::Vector2d shift = static_cast<double>(sign * d) * c.n_px;
+            const Eigen::Vector2d p = c.p_px + shift, q = c.q_px + shift, mid = 0.5 * (p + q);
+            const int mx = static_cast<int>(std::lround(mid.x())), my = static_cast<int>(std::lround(mid.y()));
+            if (mx < o.border_px || my < o.border_px || mx >= camera.width - o.border_px ||
+                my >= camera.height - o.border_px ||
+                near_model[static_cast<std::size_t>(my) * static_cast<std::size_t>(camera.width) +
+                           static_cast<std::size_t>(mx)] != 0) {
+              continue;
+            }
+            ++judged;
+            if (cell_supported(img.cell(p, q, o, false), res.support_threshold, o)) ++shown;
+          }
+          if (judged < o.displaced_min_cells || 2 * judged < u.count) continue;
+          const double n = static_cast<double>(judged);
+          const double by_noise = n * o.false_alarm + 3.0 * std::sqrt(n * o.false_alarm * (1.0 - o.false_alarm));
+          if (static_cast<double>(shown) < o.min_segment_coverage * u.expected_share * n ||
+              !(static_cast<double>(shown) > by_noise)) {
+            continue;
+          }
+          // The edge is there: is the pose moved so that it lands on it a better explanation of the window? (An
+          // unrelated parallel edge — a monitor's border beside the board's outline — is not: moving the whole
+          // model empties its other segments.) The move: a turn about the camera centre shifting the image by the
+          // offset along the segment's normal (du = f w_y, dv = -f w_x near the axis).
+          Eigen::Vector2d n_mean = Eigen::Vector2d::Zero();
+          for (std::size_t k = u.first; k < u.first + u.count; ++k) n_mean += cells[k].n_px;
+          const Eigen::Vector2d shift = static_cast<double>(sign * d) * n_mean.normalized();
+          const double f_px = 0.5 * (camera.fx + camera.fy);
+          const Eigen::Vector3d w(-shift.y() / f_px, shift.x() / f_px, 0.0);
+          const Eigen::Quaterniond turn(Eigen::AngleAxisd(w.norm(), w.normalized()));
+          const auto moved = [&](const camera::Pose& P) {
+            camera::Pose out;
+            out.q_cam_model = (turn * P.q_cam_model).normalized();
+            out.t_cam_model_m = turn * P.t_cam_model_m;
+            return out;
+          };
+          VerifyOptions plain = o;
+          plain.displaced_max_px = 0.0;
+          std::optional<MotionHint> moved_motion;
+          if (motion)
+            moved_motion =
+                MotionHint{camera::StampedPose{motion->before.t_us, moved(motion->before.pose)}, motion->t_us};
+          const PoseComparison c = compare_poses(events, camera, model, T, moved(T), plain, motion, moved_motion);
+          if (c.log_ratio <= -symmetry_decision_log_ratio(o)) {
+            res.displaced_segment = static_cast<int>(u.model_index);
+            res.displaced_px = sign * d;
+            break;
+          }
+        }
+      }
+      if (res.displaced_segment >= 0) break;
     }
   }
   res.segments = std::move(segs);
@@ -517,6 +599,10 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
              o.min_segment_share * static_cast<double>(res.segments_required)) {
     res.reason = fmt::format("verification: {} of {} segments supported along their length (need {:.0f} %)",
                              res.segments_supported, res.segments_required, 100.0 * o.min_segment_share);
+  } else if (res.displaced_segment >= 0) {
+    res.reason = fmt::format(
+        "verification: model segment {} shows no support where the pose puts it, but its edge {:+.0f} px beside it",
+        res.displaced_segment, res.displaced_px);
   } else if (relative < o.min_coverage) {
     res.reason = fmt::format(
         "verification: {:.0f} % of the model's cells supported, {:.0f} % of what its edges should show (need {:.0f} "

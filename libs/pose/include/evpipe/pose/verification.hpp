@@ -16,7 +16,10 @@
 // have support). The pose is VERIFIED when the required segments are supported along their length (per segment
 // and over the model), and the supported cells fix all 6 DoF (the covariance of the pose from one measurement
 // per supported cell, cell_sigma_px each, within the bounds): a single direction of moving edges (tilt only) or
-// too few supported cells cannot verify a pose, whatever the residuals say.
+// too few supported cells cannot verify a pose, whatever the residuals say. A required segment without support whose
+// edge is seen beside it (its cells moved across it by up to displaced_max_px show the support it lacks, away from
+// every other projected segment) refutes the pose when the pose moved by that offset explains the window better
+// (compare_poses): the edge's events are there, the pose puts it elsewhere.
 //
 // Symmetric alternatives (issue 21, "never a confident wrong pose"): a model with a partial symmetry (the board's
 // outline, the roadheader's body box) has poses T * S (S a rigid motion of the model frame that maps most of its
@@ -71,6 +74,13 @@ struct VerifyOptions {
   /// The wrong-pose threshold itself (20 mm / 2 deg) at 1 sigma: support that leaves more fixes nothing. (2 or
   /// 3 sigma inside it refuses most windows of the planar target beyond 0.8 m, whose tilt is weakly observable.)
   double cell_sigma_px = 1.0;
+  /// A required segment without support whose edge is seen beside it (the segment's cells moved across it by
+  /// 2 x (band + side strips) up to this many pixels show the support it lacks) refutes the pose when the pose moved
+  /// by that offset explains the window better (compare_poses, the symmetric alternatives' decision). 0: off.
+  double displaced_max_px = 15.0;
+  /// ... judged on at least this many moved cells (a short edge finds parallel clutter beside it by chance: the
+  /// bars beside the roadheader's 18 px cutting-head edges refuted true poses at 3 cells).
+  std::size_t displaced_min_cells = 6;
   double max_rotation_std_deg = 2.0;
   double max_translation_std_m = 0.02;
   /// Model-frame rigid motions S (T_model_model') to compare the pose T with T * S (model_symmetries(); the
@@ -106,6 +116,8 @@ struct VerifyResult {
   double noise_per_cell{0.0};      ///< expected noise events in a cell's band
   int support_threshold{0};        ///< events a band needs
   double rotation_std_deg{0.0};    ///< from the supported cells (infinity when not all DoF are fixed)
+  int displaced_segment{-1};       ///< a required segment whose edge is seen beside it (model index), else -1
+  double displaced_px{0.0};        ///< ... and where (pixels along the cell normal)
   double translation_std_m{0.0};
   std::vector<SegmentSupport> segments;
   /// The lowest log-likelihood ratio of T against T * S over VerifyOptions::symmetries (+infinity without any),

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Wrong confident poses on clutter and hard scenes with seeds nobody tuned on (docs/history.md, session 17): evsim
+# scenes like the results page's (planar decoy 0.8 m, roadheader decoy 1 m, planar 1.0 m at 3 Hz/px, a 2 s stop at
+# 5 Hz/px) with other seeds, replayed raw and with `significance` (decoys also without the prior), scored by
+# evpose-eval. Prints one line per run and the totals. Uses build/release (cmake --preset release first).
+#
+#   tools/pose_seeds.sh [EVPIPE_BINARY] [OUT_DIR]
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+bin=${1:-$root/build/release/apps/evpipe/evpipe}
+out=${2:-$root/build/pose-seeds}
+evsim=$root/build/release/apps/evsim/evsim
+eval_bin=$root/build/release/apps/evpose-eval/evpose-eval
+for b in "$bin" "$evsim" "$eval_bin"; do
+  [ -x "$b" ] || { echo "pose_seeds.sh: $b not found (cmake --preset release && cmake --build --preset release)" >&2; exit 2; }
+done
+mkdir -p "$out/scenes" "$out/runs"
+
+gen() {  # name model distance noise seed duration_ms [evsim options]
+  local name=$1 model=$2 dist=$3 noise=$4 seed=$5 dur=$6
+  shift 6
+  [ -f "$out/scenes/$name.aedat4" ] && return 0
+  "$evsim" --camera "$root/config/davis346.yaml" --model "$root/config/$model" --distance-m "$dist" \
+    --duration-ms "$dur" --noise-hz "$noise" --seed "$seed" "$@" --out "$out/scenes/$name.aedat4" --no-manifest \
+    > /dev/null
+}
+for s in 7401 7402 7403 7404 7405 7406; do gen "planar-decoy-$s" target-planar.yaml 0.8 1 "$s" 3000 --distractor decoy; done
+for s in 7401 7402 7403; do gen "roadheader-decoy-$s" roadheader-wireframe.yaml 1.0 1 "$s" 3000 --distractor decoy; done
+for s in 7411 7412 7413; do gen "planar-d1.0-n3-$s" target-planar.yaml 1.0 3 "$s" 3000; done
+for s in 7421 7422 7423; do gen "stop-rh-s2-n5-$s" roadheader-wireframe.yaml 1.0 5 "$s" 4700 --stop 1.2:2; done
+
+run() {  # scene filter [noprior]
+  local s=$out/scenes/$1 tag=$1.$2${3:+.noprior}
+  local args=(--replay "$s.aedat4" --speed max --camera "$s.camera.yaml" --model "$s.model.yaml" --no-lcm
+    --no-progress --poses-out "$out/runs/$tag.csv" --denoise "$2")
+  [ -z "${3:-}" ] && args+=(--prior "$s.prior.yaml")
+  "$bin" "${args[@]}" > /dev/null 2>&1 || { echo "$tag evpipe failed"; return 0; }
+  "$eval_bin" "$out/runs/$tag.csv" "$s.gt.csv" --json --only-tracking 2> /dev/null |
+    python3 -c "import json,sys; d=json.load(sys.stdin); print('$tag', d['wrong_confident'], d['confident_evaluated'])" \
+    2> /dev/null || echo "$tag 0 0"
+}
+export -f run
+export bin out eval_bin
+for s in $(cd "$out/scenes" && ls ./*.aedat4 | sed 's|^\./||; s|\.aedat4$||'); do
+  for f in none significance; do
+    echo "$s $f"
+    case $s in *decoy*) echo "$s $f noprior" ;; esac
+  done
+done | xargs -P 2 -L 1 bash -c 'run "$@"' _ | sort | tee "$out/summary.txt"
+awk '{w += $2; c += $3} END {printf "total: %d wrong confident of %d confident poses, %d runs\n", w, c, NR}' \
+  "$out/summary.txt"
