@@ -412,12 +412,12 @@ void PoseEstimator::fuse(PoseEstimate& out) {
   if (!options_.filter.enabled) return;
   if (out.status == TrackStatus::holding && out.pose_valid) {
     // The held pose is a measured one: hold its fusion (the filter then knows the target is still).
-    for (std::size_t i = 0; i < fused_.size(); ++i) {
-      if (!fused_[i] || fused_[i]->t_us != out.t_last_update_us) continue;
-      out.T_cam_model = fused_[i]->pose;
-      out.covariance = fused_covariance_[i];
+    for (const std::optional<Fused>& f : fused_) {
+      if (!f || f->t_us != out.t_last_update_us) continue;
+      out.T_cam_model = f->pose.T_cam_model;
+      out.covariance = f->pose.covariance;
       filter_.hold(out.t_last_update_us, out.T_cam_model, out.covariance);
-      return;
+      break;
     }
     return;
   }
@@ -435,9 +435,7 @@ void PoseEstimator::fuse(PoseEstimate& out) {
   out.T_cam_model = f.T_cam_model;
   out.covariance = f.covariance;
   fused_[1] = fused_[0];
-  fused_covariance_[1] = fused_covariance_[0];
-  fused_[0] = camera::StampedPose{out.t_us, f.T_cam_model};
-  fused_covariance_[0] = f.covariance;
+  fused_[0] = Fused{out.t_us, f};
 }
 
 PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, EventSpan history) {

@@ -357,8 +357,11 @@ class PoseEstimator {
   /// Fusion of the published poses (options_.filter), and the last two fused ones by measurement time (a hold
   /// holds the last pose, or the one before when the last moved too fast to have stopped: try_hold).
   PoseFilter filter_;
-  std::array<std::optional<camera::StampedPose>, 2> fused_;
-  std::array<Covariance6, 2> fused_covariance_{Covariance6::Zero(), Covariance6::Zero()};
+  struct Fused {
+    std::int64_t t_us;  ///< the measurement's time
+    FusedPose pose;
+  };
+  std::array<std::optional<Fused>, 2> fused_;  ///< newest first
   /// The published pose of a window: the filter's fusion of a measured tracking pose, the fused pose a hold holds.
   void fuse(PoseEstimate& out);
   EstimatorCounters counters_;
