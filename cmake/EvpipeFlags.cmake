@@ -46,12 +46,13 @@ function(evpipe_add_library name)
   evpipe_set_flags(evpipe_${name})
 endfunction()
 
-# The numerical libraries build at -O1 in the sanitizer builds (Debug): at -O0 their Eigen expressions and
+# The numerical libraries build at -O2 in the sanitizer builds (Debug): at -O0 their Eigen expressions and
 # per-event loops run tens of times slower under ASan and the tests that render scenes and solve poses took
-# minutes each; -O1 keeps every check on. GCC 12 reports false maybe-uninitialized warnings in Eigen / std
-# headers at -O1 under the sanitizers, hence the -Wno.
+# minutes each; at -O1 GCC still leaves Eigen's small packet functions out of line (the slow-target pose test:
+# 158 s at -O1, 78 s at -O2). Every check stays on at -O2. GCC 12 reports false maybe-uninitialized warnings in
+# Eigen / std headers under the sanitizers, hence the -Wno.
 function(evpipe_optimise_under_sanitizers target)
   if(EVPIPE_SANITIZE OR EVPIPE_TSAN)
-    target_compile_options(${target} PRIVATE -O1 $<$<CXX_COMPILER_ID:GNU>:-Wno-maybe-uninitialized>)
+    target_compile_options(${target} PRIVATE -O2 $<$<CXX_COMPILER_ID:GNU>:-Wno-maybe-uninitialized>)
   endif()
 endfunction()

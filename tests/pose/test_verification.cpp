@@ -352,3 +352,68 @@ TEST(PoseVerify, AnEdgeBesideOneSegmentDoesNotRefuteAPoseTheRestConfirms) {
   EXPECT_GE(verified * 10, windows * 7);  // measured 45 of 57 in both
   EXPECT_GE(moved_verified * 10, windows * 7);
 }
+
+// The case the displaced-edge refutation is for (tools/pose_seeds.sh, planar decoy seeds: a board slid onto a
+// decoy's parallel edges): unmodelled horizontal lines on the board's body run 14 px below each horizontal segment.
+// The pose moved 14 px down the image (a turn about the camera's x axis) keeps every vertical edge on its events
+// (it slid along them) and puts every horizontal segment on the unmodelled lines, so its edges fix it, but its
+// diagonal falls ~9.5 px beside the diagonal's own events: that pose is refused for the displaced diagonal. The
+// true pose of the same windows verifies and is never refuted for a displaced edge.
+TEST(PoseVerify, AnEdgeSeenBesideItsEmptySegmentRefutesThePose) {
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  constexpr std::size_t kDiagonal = 7;
+  constexpr double kShiftPx = 14.0, kDistanceM = 0.6;
+  sim::TargetScene scene;
+  scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+  scene.model = camera::load_line_model((cfg / "target-planar.yaml").string());
+  const camera::LineModel model = scene.model;
+  for (const auto& s : model.segments_m) {
+    if (std::abs(s.a_m.y() - s.b_m.y()) > 1e-9) continue;
+    const Eigen::Vector3d down(0.0, kShiftPx * kDistanceM / scene.camera.fy, 0.0);
+    scene.model.segments_m.push_back(camera::Segment3{s.a_m + down, s.b_m + down});
+  }
+  // The image moved down by kShiftPx: the camera frame turned about its x axis.
+  const Eigen::Quaterniond turn(Eigen::AngleAxisd(-std::atan(kShiftPx / scene.camera.fy), Eigen::Vector3d::UnitX()));
+  const auto moved = [&](const camera::Pose& T) {
+    camera::Pose out;
+    out.q_cam_model = (turn * T.q_cam_model).normalized();
+    out.t_cam_model_m = turn * T.t_cam_model_m;
+    return out;
+  };
+  int windows = 0, true_ok = 0, true_displaced = 0, moved_ok = 0, moved_diagonal = 0;
+  for (const std::uint64_t seed : {41u, 42u}) {
+    const camera::Pose base = sim::facing_pose(model, kDistanceM, sim::default_view(model));
+    camera::Pose end = base;
+    end.t_cam_model_m += Eigen::Vector3d(0.08, -0.07, 0.0);  // 0.18 m/s, across the diagonal
+    scene.trajectory = {camera::StampedPose{0, base}, camera::StampedPose{600'000, end}};
+    std::mt19937_64 rng(seed);
+    std::vector<Event> events = sim::render_target(scene, 0, 600'000, rng);
+    std::mt19937_64 noise_rng(seed + 1);
+    sim::NoiseOptions no;
+    no.rate_hz_per_pixel = 1.0;
+    const auto noise =
+        sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0, 600'000, no, noise_rng);
+    events.insert(events.end(), noise.begin(), noise.end());
+    std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+    for (std::int64_t t = 45'000; t + 15'000 <= 600'000; t += 30'000, ++windows) {
+      const auto T = *camera::interpolate(scene.trajectory, t);
+      const auto T_before = *camera::interpolate(scene.trajectory, t - 30'000);
+      const EventSpan w = slice(events, t - 15'000, t + 15'000);
+      const auto v = pose::verify_pose(w, scene.camera, model, T, {}, pose::MotionHint{{t - 30'000, T_before}, t});
+      true_ok += v.ok ? 1 : 0;
+      true_displaced += v.displaced_segment >= 0 ? 1 : 0;
+      const auto m =
+          pose::verify_pose(w, scene.camera, model, moved(T), {}, pose::MotionHint{{t - 30'000, moved(T_before)}, t});
+      moved_ok += m.ok ? 1 : 0;
+      moved_diagonal += m.displaced_segment == static_cast<int>(kDiagonal) ? 1 : 0;
+    }
+  }
+  std::cout << "board with unmodelled lines 14 px below its horizontal ones: the true pose verifies in " << true_ok
+            << " of " << windows << " windows (refuted for a displaced edge: " << true_displaced
+            << "); moved onto them: verifies in " << moved_ok << ", refuted for the displaced diagonal in "
+            << moved_diagonal << "\n";
+  EXPECT_EQ(true_displaced, 0);
+  EXPECT_GE(true_ok * 10, windows * 8);
+  EXPECT_EQ(moved_ok, 0);
+  EXPECT_GE(moved_diagonal * 10, windows * 8);
+}

@@ -445,7 +445,8 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     double expected_share;
     std::size_t model_index;
   };
-  std::vector<Unsupported> unsupported;  // required segments without their support
+  std::vector<Unsupported> unsupported;            // required segments without their support
+  std::vector<Eigen::Vector2d> supported_normals;  // image normals of the segments that fix the pose
   for (SegmentSupport& s : segs) {
     s.normal_motion_px /= static_cast<double>(std::max<std::size_t>(s.cells, 1));
     double own = 0.0;  // the segment's mean own share of its bands
@@ -475,6 +476,11 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     const bool counts_for_pose = s.required && seg_ok;
     if (s.required && static_cast<double>(s.supported) <= by_noise) {
       unsupported.push_back({j, s.cells, expected_share, s.model_index});
+    }
+    if (counts_for_pose) {
+      Eigen::Vector2d n_sum = Eigen::Vector2d::Zero();
+      for (std::size_t k = 0; k < s.cells; ++k) n_sum += cells[j + k].n_px;
+      if (n_sum.norm() > 0.0) supported_normals.push_back(n_sum.normalized());
     }
     for (std::size_t k = 0; k < s.cells; ++k, ++j) {
       if (!supported[j] || !counts_for_pose) continue;
@@ -534,30 +540,48 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
           // unrelated parallel edge — a monitor's border beside the board's outline — is not: moving the whole
           // model empties its other segments.) The move: a turn about the camera centre shifting the image by the
           // offset along the segment's normal (du = f w_y, dv = -f w_x near the axis).
+          // The segment's events fix only the shift's component along its normal; the move may also slide along
+          // it. Candidates: straight across, and along each supported segment (which that keeps on its events) by
+          // as much as lands the segment on its edge (a board slid along its sides onto a decoy's parallel edges).
           Eigen::Vector2d n_mean = Eigen::Vector2d::Zero();
           for (std::size_t k = u.first; k < u.first + u.count; ++k) n_mean += cells[k].n_px;
-          const Eigen::Vector2d shift = static_cast<double>(sign * d) * n_mean.normalized();
-          const double f_px = 0.5 * (camera.fx + camera.fy);
-          const Eigen::Vector3d w(-shift.y() / f_px, shift.x() / f_px, 0.0);
-          const Eigen::Quaterniond turn(Eigen::AngleAxisd(w.norm(), w.normalized()));
-          const auto moved = [&](const camera::Pose& P) {
-            camera::Pose out;
-            out.q_cam_model = (turn * P.q_cam_model).normalized();
-            out.t_cam_model_m = turn * P.t_cam_model_m;
-            return out;
-          };
-          VerifyOptions plain = o;
-          plain.displaced_max_px = 0.0;
-          std::optional<MotionHint> moved_motion;
-          if (motion)
-            moved_motion =
-                MotionHint{camera::StampedPose{motion->before.t_us, moved(motion->before.pose)}, motion->t_us};
-          const PoseComparison c = compare_poses(events, camera, model, T, moved(T), plain, motion, moved_motion);
-          if (c.log_ratio <= -symmetry_decision_log_ratio(o)) {
-            res.displaced_segment = static_cast<int>(u.model_index);
-            res.displaced_px = sign * d;
-            break;
+          n_mean.normalize();
+          const double across = static_cast<double>(sign * d);
+          std::vector<Eigen::Vector2d> shifts{across * n_mean};
+          for (const Eigen::Vector2d& m : supported_normals) {
+            const Eigen::Vector2d along(-m.y(), m.x());
+            const double c = along.dot(n_mean);
+            if (std::abs(c) < 0.5) continue;  // nearly parallel to the segment: no shorter than 2x across
+            const Eigen::Vector2d shift = (across / c) * along;
+            if (std::none_of(shifts.begin(), shifts.end(),
+                             [&](const Eigen::Vector2d& s2) { return (s2 - shift).norm() < 1.0; })) {
+              shifts.push_back(shift);
+            }
           }
+          const double f_px = 0.5 * (camera.fx + camera.fy);
+          for (const Eigen::Vector2d& shift : shifts) {
+            const Eigen::Vector3d w(-shift.y() / f_px, shift.x() / f_px, 0.0);
+            const Eigen::Quaterniond turn(Eigen::AngleAxisd(w.norm(), w.normalized()));
+            const auto moved = [&](const camera::Pose& P) {
+              camera::Pose out;
+              out.q_cam_model = (turn * P.q_cam_model).normalized();
+              out.t_cam_model_m = turn * P.t_cam_model_m;
+              return out;
+            };
+            VerifyOptions plain = o;
+            plain.displaced_max_px = 0.0;
+            std::optional<MotionHint> moved_motion;
+            if (motion)
+              moved_motion =
+                  MotionHint{camera::StampedPose{motion->before.t_us, moved(motion->before.pose)}, motion->t_us};
+            const PoseComparison c = compare_poses(events, camera, model, T, moved(T), plain, motion, moved_motion);
+            if (c.log_ratio <= -symmetry_decision_log_ratio(o)) {
+              res.displaced_segment = static_cast<int>(u.model_index);
+              res.displaced_px = across;
+              break;
+            }
+          }
+          if (res.displaced_segment >= 0) break;
         }
       }
       if (res.displaced_segment >= 0) break;
