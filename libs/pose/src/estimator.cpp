@@ -34,11 +34,11 @@ void EstimatorOptions::validate() const {
                     s.band_px, s.gate_px, s.far_px, s.cell_px));
   }
   if (!(s.significance > 0.0 && s.significance < 1.0) || !(s.max_motion_px > 0.0) || !(s.memory_s > 0.0) ||
-      !(s.min_motion_events > 0.0))
+      !(s.min_motion_events > 0.0) || !(s.max_rotation_deg >= 0.0) || !(s.max_translation_m >= 0.0))
     throw std::invalid_argument(
-        fmt::format("pose standstill: significance must be in (0, 1) and max_motion_px > 0, "
-                    "got {} / {}",
-                    s.significance, s.max_motion_px));
+        fmt::format("pose standstill: significance must be in (0, 1), max_motion_px > 0 and max_rotation_deg / "
+                    "max_translation_m >= 0, got {} / {} / {} / {}",
+                    s.significance, s.max_motion_px, s.max_rotation_deg, s.max_translation_m));
   if (speed_baseline_us < 0)
     throw std::invalid_argument(fmt::format("pose.speed_baseline_us: must be >= 0, got {}", speed_baseline_us));
   if (!(track_max_blur_px > 0.0) || track_max_span_us < 0 || track_history_max_us < 0 || unverified_max_us < 0)
@@ -818,8 +818,14 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   }
   // It moves, but no pose can be measured.
   const std::string why = jumped ? std::string("the update jumped") : u.reason;
-  if (!jumped && ev.implied_motion_px <= options_.standstill.max_motion_px) {
-    // A significant excess worth a measurement (min_motion_events), but less motion than a hold tolerates: held.
+  // What the motion may stand for in the pose, in its weakest direction (StandstillOptions::max_rotation_deg).
+  const double implied_deg = ev.implied_motion_px * standstill_.rotation_deg_per_px();
+  const double implied_m = ev.implied_motion_px * standstill_.translation_m_per_px();
+  const bool within_pose_bound =
+      implied_deg <= options_.standstill.max_rotation_deg && implied_m <= options_.standstill.max_translation_m;
+  if (!jumped && ev.implied_motion_px <= options_.standstill.max_motion_px && within_pose_bound) {
+    // A significant excess worth a measurement (min_motion_events), but less motion than a hold tolerates (in the
+    // image and in the pose it may stand for): held.
     PoseEstimate kept = held_pose(t_end_us, window.size());
     kept.note =
         fmt::format("holding: motion near the model (~{:.1f} px) too small to measure: {}", ev.implied_motion_px, why);
@@ -838,8 +844,10 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   out.t_last_update_us = track_.last->t_us;
   out.inliers = u.inliers;
   out.sigma_px = u.sigma_px;
-  out.note = fmt::format("holding ended: motion near the model (~{:.1f} px) that tracking cannot measure: {}",
-                         ev.implied_motion_px, why);
+  out.note = fmt::format(
+      "holding ended: motion near the model (~{:.1f} px, up to {:.1f} deg / {:.1f} mm) that tracking cannot measure: "
+      "{}",
+      ev.implied_motion_px, implied_deg, 1000.0 * implied_m, why);
   if (track_.unhealthy_in_a_row >= options_.lost_after_windows) {
     track_.lost = true;
     set_status(TrackStatus::lost);

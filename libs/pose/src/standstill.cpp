@@ -3,8 +3,12 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numbers>
 
 namespace evpipe::pose {
 
@@ -22,6 +26,57 @@ double poisson_upper_tail(std::uint64_t n, double mu) noexcept {
     if (term <= sum * 1e-12) break;
   }
   return std::min(sum, 1.0);
+}
+
+void StandstillMonitor::pose_change_per_px(const camera::CameraModel& camera, const std::vector<ProjectedSegment>& segs,
+                                           const camera::Pose& T) {
+  // H = mean over the edge pixels of g g^T, g the change of a point's distance across its edge (pixels) per left
+  // increment of the pose [dtheta, dt] (types.hpp); a pose change delta moves the edges by delta^T H delta px^2
+  // (mean square). The largest rotation (translation) with delta^T H delta = 1: the square root of the largest
+  // eigenvalue of that block of H^-1 (translations scaled by the mean depth for the conditioning, as the tracker).
+  using Matrix6d = Eigen::Matrix<double, 6, 6>;
+  using Vector6d = Eigen::Matrix<double, 6, 1>;
+  const double f = 0.5 * (camera.fx + camera.fy);
+  const Eigen::Matrix3d R = T.rotation();
+  Matrix6d H = Matrix6d::Zero();
+  double n_points = 0.0, depth = 0.0;
+  for (const ProjectedSegment& s : segs) {
+    const Eigen::Vector2d d = s.b_n - s.a_n;
+    if (!(d.norm() > 0.0)) continue;
+    const Eigen::Vector2d normal(-d.y() / d.norm(), d.x() / d.norm());
+    const int n = std::max(2, static_cast<int>(std::ceil(s.length_px)));
+    for (int i = 0; i < n; ++i) {
+      const double a = (static_cast<double>(i) + 0.5) / static_cast<double>(n);
+      const Eigen::Vector3d Q = R * (s.a_m + a * (s.b_m - s.a_m));
+      const Eigen::Vector3d P = Q + T.t_cam_model_m;
+      if (!(P.z() > 0.0)) continue;
+      Eigen::Matrix<double, 2, 3> Jp;
+      Jp << 1.0 / P.z(), 0.0, -P.x() / (P.z() * P.z()), 0.0, 1.0 / P.z(), -P.y() / (P.z() * P.z());
+      Eigen::Matrix<double, 3, 6> dP;
+      dP.leftCols<3>() << 0.0, Q.z(), -Q.y(), -Q.z(), 0.0, Q.x(), Q.y(), -Q.x(), 0.0;  // -[Q]x
+      dP.rightCols<3>() = Eigen::Matrix3d::Identity();
+      const Vector6d g = f * (normal.transpose() * Jp * dP).transpose();
+      H.noalias() += g * g.transpose();
+      n_points += 1.0;
+      depth += P.z();
+    }
+  }
+  rotation_deg_per_px_ = translation_m_per_px_ = std::numeric_limits<double>::infinity();
+  if (n_points < 1.0) return;
+  H /= n_points;
+  depth /= n_points;
+  Vector6d scale;
+  scale << 1.0, 1.0, 1.0, depth, depth, depth;
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> es(scale.asDiagonal() * H * scale.asDiagonal());
+  if (es.info() != Eigen::Success || !(es.eigenvalues()(0) > 1e-12 * std::max(es.eigenvalues()(5), 1e-300))) return;
+  const Matrix6d C =
+      scale.asDiagonal() *
+      (es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose()) *
+      scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> er(C.topLeftCorner<3, 3>());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> et(C.bottomRightCorner<3, 3>());
+  rotation_deg_per_px_ = std::sqrt(std::max(er.eigenvalues()(2), 0.0)) * 180.0 / std::numbers::pi;
+  translation_m_per_px_ = std::sqrt(std::max(et.eigenvalues()(2), 0.0));
 }
 
 void StandstillMonitor::stop() noexcept {
@@ -54,6 +109,7 @@ bool StandstillMonitor::start(const camera::CameraModel& camera, const Undistort
       prev = p;
     }
   }
+  pose_change_per_px(camera, segs, T_cam_model);
   cv::Mat dist;
   cv::distanceTransform(edges, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   const auto n_px = static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_);

@@ -1,0 +1,73 @@
+// The standstill monitor's pose bound (standstill.hpp): what one pixel of motion across the held model's edges can
+// stand for in the pose.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <numbers>
+#include <random>
+
+#include "evpipe/camera/camera_model.hpp"
+#include "evpipe/camera/line_model.hpp"
+#include "evpipe/pose/projection.hpp"
+#include "evpipe/pose/standstill.hpp"
+#include "evpipe/sim/target3d.hpp"
+#include "evpipe_test_data.hpp"
+
+using namespace evpipe;
+
+// Every pose change (seeded, up to 1 deg / 10 mm) moves the held model's edges across themselves by at least its
+// rotation angle / rotation_deg_per_px and its translation / translation_m_per_px pixels RMS (to first order), and
+// the planar board's weakest direction (its tilt) is several times weaker than the 3D roadheader's.
+TEST(StandstillMonitor, PoseChangePerPixelBoundsEveryPoseChange) {
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  const camera::CameraModel camera = camera::load_camera((cfg / "davis346.yaml").string());
+  const pose::UndistortMap map(camera);
+  double per_px_deg[2] = {0.0, 0.0};
+  int k = 0;
+  for (const char* file : {"target-planar.yaml", "roadheader-wireframe.yaml"}) {
+    SCOPED_TRACE(file);
+    const camera::LineModel model = camera::load_line_model((cfg / file).string());
+    const camera::Pose T = sim::facing_pose(model, 1.0, sim::default_view(model));
+    pose::StandstillMonitor monitor;
+    ASSERT_TRUE(monitor.start(camera, map, model, T, pose::StandstillOptions{}));
+    const double deg_per_px = monitor.rotation_deg_per_px(), m_per_px = monitor.translation_m_per_px();
+    ASSERT_TRUE(std::isfinite(deg_per_px) && std::isfinite(m_per_px));
+    per_px_deg[k++] = deg_per_px;
+    std::cout << file << " at 1 m: 1 px RMS across the edges stands for up to " << deg_per_px << " deg / "
+              << 1000.0 * m_per_px << " mm\n";
+    const auto segs = pose::project_model(camera, model, T);
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    double tightest_rot = 0.0, tightest_trans = 0.0;  // the largest (bound ratio) seen: 1 when attained
+    for (int trial = 0; trial < 300; ++trial) {
+      const Eigen::Vector3d w =
+          Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized() * (std::abs(u(rng)) * 1e-3 * 17.45);
+      const Eigen::Vector3d dt = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized() * (std::abs(u(rng)) * 0.01);
+      camera::Pose T1;
+      T1.q_cam_model = (Eigen::Quaterniond(Eigen::AngleAxisd(w.norm(), w.normalized())) * T.q_cam_model).normalized();
+      T1.t_cam_model_m = T.t_cam_model_m + dt;
+      double sum2 = 0.0, n = 0.0;
+      for (const auto& s : segs) {
+        const Eigen::Vector2d a = camera.normalised_to_pixel(s.a_n), b = camera.normalised_to_pixel(s.b_n);
+        const Eigen::Vector2d normal = Eigen::Vector2d(-(b - a).y(), (b - a).x()).normalized();
+        for (int i = 0; i < 50; ++i) {
+          const Eigen::Vector3d P = s.a_m + (i + 0.5) / 50.0 * (s.b_m - s.a_m);
+          const auto p0 = camera.project(T.apply(P)), p1 = camera.project(T1.apply(P));
+          if (!p0 || !p1) continue;
+          const double d = normal.dot(*p1 - *p0);
+          sum2 += d * d * s.length_px;  // weighted by length: the monitor's mean is over edge pixels
+          n += s.length_px;
+        }
+      }
+      const double rms_px = std::sqrt(sum2 / n);
+      const double angle_deg = w.norm() * 180.0 / std::numbers::pi;
+      tightest_rot = std::max(tightest_rot, angle_deg / (deg_per_px * rms_px));
+      tightest_trans = std::max(tightest_trans, dt.norm() / (m_per_px * rms_px));
+    }
+    std::cout << "  largest angle / bound " << tightest_rot << ", translation / bound " << tightest_trans << "\n";
+    EXPECT_LE(tightest_rot, 1.05);
+    EXPECT_LE(tightest_trans, 1.05);
+  }
+  EXPECT_GT(per_px_deg[0], 3.0 * per_px_deg[1]);
+}
