@@ -538,11 +538,11 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
           }
           // The edge is there: is the pose moved so that it lands on it a better explanation of the window? (An
           // unrelated parallel edge — a monitor's border beside the board's outline — is not: moving the whole
-          // model empties its other segments.) The move: a turn about the camera centre shifting the image by the
-          // offset along the segment's normal (du = f w_y, dv = -f w_x near the axis).
-          // The segment's events fix only the shift's component along its normal; the move may also slide along
-          // it. Candidates: straight across, and along each supported segment (which that keeps on its events) by
-          // as much as lands the segment on its edge (a board slid along its sides onto a decoy's parallel edges).
+          // model empties its other segments.) The move: a turn about the camera centre shifting the image (du =
+          // f w_y, dv = -f w_x near the axis). The segment's events fix only the shift's component along its
+          // normal, so the candidates are: straight across, and along each segment that fixes the pose (which that
+          // keeps on its events) by as much as lands the empty segment on its edge (a board slid along its sides
+          // onto a decoy's parallel edges).
           Eigen::Vector2d n_mean = Eigen::Vector2d::Zero();
           for (std::size_t k = u.first; k < u.first + u.count; ++k) n_mean += cells[k].n_px;
           n_mean.normalize();
