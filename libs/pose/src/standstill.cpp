@@ -1,14 +1,13 @@
 #include "evpipe/pose/standstill.hpp"
 
+#include "pose_spread.hpp"
+
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
-
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numbers>
 
 namespace evpipe::pose {
 
@@ -32,13 +31,11 @@ void StandstillMonitor::pose_change_per_px(const camera::CameraModel& camera, co
                                            const camera::Pose& T) {
   // H = mean over the edge pixels of g g^T, g the change of a point's distance across its edge (pixels) per left
   // increment of the pose [dtheta, dt] (types.hpp); a pose change delta moves the edges by delta^T H delta px^2
-  // (mean square). The largest rotation (translation) with delta^T H delta = 1: the square root of the largest
-  // eigenvalue of that block of H^-1 (translations scaled by the mean depth for the conditioning, as the tracker).
-  using Matrix6d = Eigen::Matrix<double, 6, 6>;
+  // (mean square); the largest rotation (translation) with delta^T H delta = 1 is the pose spread of H.
   using Vector6d = Eigen::Matrix<double, 6, 1>;
   const double f = 0.5 * (camera.fx + camera.fy);
   const Eigen::Matrix3d R = T.rotation();
-  Matrix6d H = Matrix6d::Zero();
+  Covariance6 H = Covariance6::Zero();
   double n_points = 0.0, depth = 0.0;
   for (const ProjectedSegment& s : segs) {
     const Eigen::Vector2d d = s.b_n - s.a_n;
@@ -63,20 +60,9 @@ void StandstillMonitor::pose_change_per_px(const camera::CameraModel& camera, co
   }
   rotation_deg_per_px_ = translation_m_per_px_ = std::numeric_limits<double>::infinity();
   if (n_points < 1.0) return;
-  H /= n_points;
-  depth /= n_points;
-  Vector6d scale;
-  scale << 1.0, 1.0, 1.0, depth, depth, depth;
-  const Eigen::SelfAdjointEigenSolver<Matrix6d> es(scale.asDiagonal() * H * scale.asDiagonal());
-  if (es.info() != Eigen::Success || !(es.eigenvalues()(0) > 1e-12 * std::max(es.eigenvalues()(5), 1e-300))) return;
-  const Matrix6d C =
-      scale.asDiagonal() *
-      (es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose()) *
-      scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> er(C.topLeftCorner<3, 3>());
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> et(C.bottomRightCorner<3, 3>());
-  rotation_deg_per_px_ = std::sqrt(std::max(er.eigenvalues()(2), 0.0)) * 180.0 / std::numbers::pi;
-  translation_m_per_px_ = std::sqrt(std::max(et.eigenvalues()(2), 0.0));
+  const detail::PoseSpread spread = detail::pose_spread(H / n_points, depth / n_points);
+  rotation_deg_per_px_ = spread.rotation_deg;
+  translation_m_per_px_ = spread.translation_m;
 }
 
 void StandstillMonitor::stop() noexcept {

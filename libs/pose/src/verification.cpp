@@ -4,6 +4,8 @@
 
 #include "evpipe/pose/verification.hpp"
 
+#include "pose_spread.hpp"
+
 #include <fmt/format.h>
 
 #include <Eigen/Eigenvalues>
@@ -593,25 +595,9 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
   const double relative =
       res.cells_expected > 0.0 ? static_cast<double>(res.cells_supported) / res.cells_expected : 0.0;
   // Covariance of the pose from the supported cells (depth-scaled eigen-decomposition, as the tracker's).
-  res.rotation_std_deg = std::numeric_limits<double>::infinity();
-  res.translation_std_m = std::numeric_limits<double>::infinity();
-  {
-    const double depth = std::max(T.t_cam_model_m.norm(), 1e-3);
-    Vector6d scale;
-    scale << 1.0, 1.0, 1.0, depth, depth, depth;
-    const Matrix6d Hs = scale.asDiagonal() * H * scale.asDiagonal();
-    const Eigen::SelfAdjointEigenSolver<Matrix6d> es(Hs);
-    if (es.info() == Eigen::Success && es.eigenvalues()(0) > 1e-12 * std::max(es.eigenvalues()(5), 1e-300)) {
-      const Matrix6d C =
-          scale.asDiagonal() *
-          (es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose()) *
-          scale.asDiagonal();
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> er(C.topLeftCorner<3, 3>());
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> et(C.bottomRightCorner<3, 3>());
-      res.rotation_std_deg = std::sqrt(std::max(er.eigenvalues()(2), 0.0)) * 180.0 / std::numbers::pi;
-      res.translation_std_m = std::sqrt(std::max(et.eigenvalues()(2), 0.0));
-    }
-  }
+  const detail::PoseSpread spread = detail::pose_spread(H, std::max(T.t_cam_model_m.norm(), 1e-3));
+  res.rotation_std_deg = spread.rotation_deg;
+  res.translation_std_m = spread.translation_m;
 
   if (res.segments_judged == 0) {
     res.reason = "verification: no model segment in view";
