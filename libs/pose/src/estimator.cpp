@@ -723,6 +723,7 @@ bool PoseEstimator::try_hold(EventSpan window, std::int64_t t_end_us) {
     standstill_.stop();
     return false;
   }
+  hold_per_px_ = pose_change_per_px(camera_, model_, track_.last->pose);
   return true;
 }
 
@@ -819,8 +820,8 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   // It moves, but no pose can be measured.
   const std::string why = jumped ? std::string("the update jumped") : u.reason;
   // What the motion may stand for in the pose, in its weakest direction (StandstillOptions::max_rotation_deg).
-  const double implied_deg = ev.implied_motion_px * standstill_.rotation_deg_per_px();
-  const double implied_m = ev.implied_motion_px * standstill_.translation_m_per_px();
+  const double implied_deg = ev.implied_motion_px * hold_per_px_.rotation_deg;
+  const double implied_m = ev.implied_motion_px * hold_per_px_.translation_m;
   const bool within_pose_bound =
       implied_deg <= options_.standstill.max_rotation_deg && implied_m <= options_.standstill.max_translation_m;
   if (!jumped && ev.implied_motion_px <= options_.standstill.max_motion_px && within_pose_bound) {

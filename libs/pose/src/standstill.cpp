@@ -27,14 +27,15 @@ double poisson_upper_tail(std::uint64_t n, double mu) noexcept {
   return std::min(sum, 1.0);
 }
 
-void StandstillMonitor::pose_change_per_px(const camera::CameraModel& camera, const std::vector<ProjectedSegment>& segs,
-                                           const camera::Pose& T) {
+PoseChangePerPx pose_change_per_px(const camera::CameraModel& camera, const camera::LineModel& model,
+                                   const camera::Pose& T) {
   // H = mean over the edge pixels of g g^T, g the change of a point's distance across its edge (pixels) per left
   // increment of the pose [dtheta, dt] (types.hpp); a pose change delta moves the edges by delta^T H delta px^2
   // (mean square); the largest rotation (translation) with delta^T H delta = 1 is the pose spread of H.
   using Vector6d = Eigen::Matrix<double, 6, 1>;
   const double f = 0.5 * (camera.fx + camera.fy);
   const Eigen::Matrix3d R = T.rotation();
+  const std::vector<ProjectedSegment> segs = project_model(camera, model, T);
   Covariance6 H = Covariance6::Zero();
   double n_points = 0.0, depth = 0.0;
   for (const ProjectedSegment& s : segs) {
@@ -58,11 +59,9 @@ void StandstillMonitor::pose_change_per_px(const camera::CameraModel& camera, co
       depth += P.z();
     }
   }
-  rotation_deg_per_px_ = translation_m_per_px_ = std::numeric_limits<double>::infinity();
-  if (n_points < 1.0) return;
+  if (n_points < 1.0) return {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
   const detail::PoseSpread spread = detail::pose_spread(H / n_points, depth / n_points);
-  rotation_deg_per_px_ = spread.rotation_deg;
-  translation_m_per_px_ = spread.translation_m;
+  return {spread.rotation_deg, spread.translation_m};
 }
 
 void StandstillMonitor::stop() noexcept {
@@ -95,7 +94,6 @@ bool StandstillMonitor::start(const camera::CameraModel& camera, const Undistort
       prev = p;
     }
   }
-  pose_change_per_px(camera, segs, T_cam_model);
   cv::Mat dist;
   cv::distanceTransform(edges, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   const auto n_px = static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_);

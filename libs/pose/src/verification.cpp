@@ -513,7 +513,45 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     const std::vector<Cell> pieces = build_cells(img, camera, model, T, every, 0.0, nullptr, false, false);
     const std::vector<std::uint8_t> near_model = near_mask(pieces, near_px, camera.width, camera.height);
     const int first_offset = static_cast<int>(std::ceil(2.0 * near_px));
+    const double f_px = 0.5 * (camera.fx + camera.fy);
+    VerifyOptions plain = o;
+    plain.displaced_max_px = 0.0;
+    // Whether T moved so that its image shifts by `shift` px (a turn about the camera centre: du = f w_y,
+    // dv = -f w_x near the axis) explains the window clearly better (compare_poses, the symmetric alternatives'
+    // decision).
+    const auto moved_explains_better = [&](const Eigen::Vector2d& shift) {
+      const Eigen::Vector3d w(-shift.y() / f_px, shift.x() / f_px, 0.0);
+      const Eigen::Quaterniond turn(Eigen::AngleAxisd(w.norm(), w.normalized()));
+      const auto moved = [&](const camera::Pose& P) {
+        camera::Pose out;
+        out.q_cam_model = (turn * P.q_cam_model).normalized();
+        out.t_cam_model_m = turn * P.t_cam_model_m;
+        return out;
+      };
+      std::optional<MotionHint> moved_motion;
+      if (motion)
+        moved_motion = MotionHint{camera::StampedPose{motion->before.t_us, moved(motion->before.pose)}, motion->t_us};
+      return compare_poses(events, camera, model, T, moved(T), plain, motion, moved_motion).log_ratio <=
+             -symmetry_decision_log_ratio(o);
+    };
     for (const Unsupported& u : unsupported) {
+      // The segment's events fix only the image shift's component along its normal, so the moves tried per pixel
+      // of offset are: straight across, and along each segment that fixes the pose (which that keeps on its
+      // events) by as much as lands the empty segment on its edge (a board slid along its sides onto a decoy's
+      // parallel edges); not along one nearly parallel to it (more than 2x the offset).
+      Eigen::Vector2d n_mean = Eigen::Vector2d::Zero();
+      for (std::size_t k = u.first; k < u.first + u.count; ++k) n_mean += cells[k].n_px;
+      n_mean.normalize();
+      struct Move {
+        Eigen::Vector2d direction;
+        double per_px;  // the offset across the segment per pixel moved along `direction`
+      };
+      std::vector<Move> moves{{n_mean, 1.0}};
+      for (const Eigen::Vector2d& m : supported_normals) {
+        const Eigen::Vector2d along(-m.y(), m.x());
+        const double c = along.dot(n_mean);
+        if (std::abs(c) >= 0.5) moves.push_back({along, c});
+      }
       for (int d = first_offset; d <= static_cast<int>(o.displaced_max_px) && res.displaced_segment < 0; ++d) {
         for (const int sign : {1, -1}) {
           std::size_t judged = 0, shown = 0;
@@ -540,44 +578,17 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
           }
           // The edge is there: is the pose moved so that it lands on it a better explanation of the window? (An
           // unrelated parallel edge — a monitor's border beside the board's outline — is not: moving the whole
-          // model empties its other segments.) The move: a turn about the camera centre shifting the image (du =
-          // f w_y, dv = -f w_x near the axis). The segment's events fix only the shift's component along its
-          // normal, so the candidates are: straight across, and along each segment that fixes the pose (which that
-          // keeps on its events) by as much as lands the empty segment on its edge (a board slid along its sides
-          // onto a decoy's parallel edges).
-          Eigen::Vector2d n_mean = Eigen::Vector2d::Zero();
-          for (std::size_t k = u.first; k < u.first + u.count; ++k) n_mean += cells[k].n_px;
-          n_mean.normalize();
+          // model empties its other segments.)
           const double across = static_cast<double>(sign * d);
-          std::vector<Eigen::Vector2d> shifts{across * n_mean};
-          for (const Eigen::Vector2d& m : supported_normals) {
-            const Eigen::Vector2d along(-m.y(), m.x());
-            const double c = along.dot(n_mean);
-            if (std::abs(c) < 0.5) continue;  // nearly parallel to the segment: no shorter than 2x across
-            const Eigen::Vector2d shift = (across / c) * along;
-            if (std::none_of(shifts.begin(), shifts.end(),
-                             [&](const Eigen::Vector2d& s2) { return (s2 - shift).norm() < 1.0; })) {
-              shifts.push_back(shift);
+          std::vector<Eigen::Vector2d> tried;
+          for (const Move& m : moves) {
+            const Eigen::Vector2d shift = (across / m.per_px) * m.direction;
+            if (std::any_of(tried.begin(), tried.end(),
+                            [&](const Eigen::Vector2d& s2) { return (s2 - shift).norm() < 1.0; })) {
+              continue;  // within a pixel of a move already tried
             }
-          }
-          const double f_px = 0.5 * (camera.fx + camera.fy);
-          for (const Eigen::Vector2d& shift : shifts) {
-            const Eigen::Vector3d w(-shift.y() / f_px, shift.x() / f_px, 0.0);
-            const Eigen::Quaterniond turn(Eigen::AngleAxisd(w.norm(), w.normalized()));
-            const auto moved = [&](const camera::Pose& P) {
-              camera::Pose out;
-              out.q_cam_model = (turn * P.q_cam_model).normalized();
-              out.t_cam_model_m = turn * P.t_cam_model_m;
-              return out;
-            };
-            VerifyOptions plain = o;
-            plain.displaced_max_px = 0.0;
-            std::optional<MotionHint> moved_motion;
-            if (motion)
-              moved_motion =
-                  MotionHint{camera::StampedPose{motion->before.t_us, moved(motion->before.pose)}, motion->t_us};
-            const PoseComparison c = compare_poses(events, camera, model, T, moved(T), plain, motion, moved_motion);
-            if (c.log_ratio <= -symmetry_decision_log_ratio(o)) {
+            tried.push_back(shift);
+            if (moved_explains_better(shift)) {
               res.displaced_segment = static_cast<int>(u.model_index);
               res.displaced_px = across;
               break;

@@ -344,6 +344,7 @@ class PoseEstimator {
   std::uint64_t generation_{0};
   std::optional<std::int64_t> attempt_t_us_;         ///< an attempt prepared and not completed: its window's time
   StandstillMonitor standstill_;                     ///< active while holding
+  PoseChangePerPx hold_per_px_;                      ///< the held pose's pose_change_per_px (set when a hold starts)
   StandstillMonitor probe_;                          ///< signal_near's scratch
   std::int64_t hold_previous_t_us_{0};               ///< the previous window's time while holding
   std::optional<std::int64_t> last_published_t_us_;  ///< time of the track's last pose published as tracking

@@ -44,7 +44,7 @@ struct StandstillOptions {
   /// min_inliers, worth a measurement.
   double min_motion_events = 50.0;
   /// A significant motion too small to measure keeps the held pose only while the pose change it may stand for
-  /// (the implied motion times the held model's rotation_deg_per_px / translation_m_per_px) stays within these:
+  /// (the implied motion times the held model's pose_change_per_px()) stays within these:
   /// the error a confident pose must stay within (issue 21). A planar board's tilt changes its image by a fraction
   /// of a pixel per degree: 0.4 px of creep after the denoiser held a board 2.4 deg off.
   double max_rotation_deg = 2.0;
@@ -84,17 +84,8 @@ class StandstillMonitor {
   [[nodiscard]] bool active() const noexcept { return !cls_.empty(); }
   void stop() noexcept;
   [[nodiscard]] double visible_length_px() const noexcept { return length_px_; }
-  /// The largest pose change (rotation angle, translation) whose image moves the held model's edges across
-  /// themselves by 1 px RMS over their visible length (motion along an edge makes no event): what one pixel of
-  /// implied motion can stand for in the pose's weakest direction (a planar board's tilt: several degrees).
-  /// Infinite when the edges do not fix the pose.
-  [[nodiscard]] double rotation_deg_per_px() const noexcept { return rotation_deg_per_px_; }
-  [[nodiscard]] double translation_m_per_px() const noexcept { return translation_m_per_px_; }
 
  private:
-  void pose_change_per_px(const camera::CameraModel& camera, const std::vector<ProjectedSegment>& segs,
-                          const camera::Pose& T);
-
   StandstillOptions o_;
   int width_{0}, height_{0};
   int cells_x_{0}, cells_y_{0};
@@ -105,9 +96,19 @@ class StandstillMonitor {
   std::uint32_t window_id_{0};
   double area_near_{0}, area_ring_{0}, area_far_{0};
   double length_px_{0};
-  double rotation_deg_per_px_{0}, translation_m_per_px_{0};
   // Totals over the hold (fresh events only).
   double acc_near_{0}, acc_ring_{0}, acc_far_{0}, acc_exposure_s_{0};
 };
+
+/// The largest pose change (rotation angle, translation) whose image moves the model's edges at T_cam_model across
+/// themselves by 1 px RMS over their visible length (motion along an edge makes no event): what one pixel of a hold's
+/// implied motion can stand for in the pose's weakest direction (a planar board's tilt: several degrees). Infinite
+/// when the edges do not fix the pose.
+struct PoseChangePerPx {
+  double rotation_deg{0.0};
+  double translation_m{0.0};
+};
+[[nodiscard]] PoseChangePerPx pose_change_per_px(const camera::CameraModel& camera, const camera::LineModel& model,
+                                                 const camera::Pose& T_cam_model);
 
 }  // namespace evpipe::pose
