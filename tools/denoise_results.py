@@ -149,8 +149,8 @@ READING_NOTES = [
     "kept share of "
     "`significance` is the edge-line test's timing tolerance: δ₀ = 2 ms describes a DAVIS346; on this file "
     "δ₀ = 5 / 10 ms keeps 45 / 52 % (ESR within 0.01), i.e. the DVXplorer's timing spread between neighbouring "
-    "pixels looks wider. Its first 30 ms keep almost nothing (no history yet, and the conservative 10 Hz/px rate "
-    "assumed until the first 10 ms period closes). Not changed: δ₀ per sensor wants a measurement of that sensor's "
+    "pixels looks wider. Its first 30 ms keep almost nothing (no history yet, and the conservative rate "
+    "assumed until the first measured period closes, 20 ms after the first event). Not changed: δ₀ per sensor wants a measurement of that sensor's "
     "jitter (or an online estimate of it), not a value fitted to this file.",
     "* **Causal mode** sees only the past half of the ball (half the exposure), and the past half of a moving edge "
     "is often rank-deficient, so with the paper's threshold and `singular=reject` it removes much more signal; it "

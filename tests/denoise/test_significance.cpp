@@ -208,6 +208,20 @@ TEST(Significance, HeavyNoiseIsEstimatedAndRemoved) {
   EXPECT_LE(static_cast<double>(kept_late), 2.0 * o.alpha * static_cast<double>(late) + 10.0);
 }
 
+// From the very first event: no period has measured the rate yet (none can count zero-support events before T0), so
+// the filter assumes the larger of initial_rate_hz and the whole event rate so far. Before, the first period read as
+// 0 Hz/px and the second ran with the loosest thresholds: 130 Hz/px of noise from the start kept 75 000 of the first
+// 30 ms's 350 000 events (tools/bench_pipeline.py's high-rate stream).
+TEST(Significance, HeavyNoiseFromTheFirstEventIsRemoved) {
+  const std::vector<Event> ev = pure_noise(130.0, 60'000, 13);
+  const double bound = 2.0 * SignificanceOptions{}.alpha * static_cast<double>(ev.size()) + 10.0;
+  for (const std::int64_t lookahead_us : {std::int64_t{0}, SignificanceOptions{}.lookahead_us}) {
+    auto f = make_filter("significance", {{"lookahead_us", std::to_string(lookahead_us)}}, kDavis346);
+    const auto d = run_filter(*f, ev);
+    EXPECT_LE(static_cast<double>(count_kept(d)), bound) << "lookahead_us " << lookahead_us;
+  }
+}
+
 TEST(Significance, StreamEqualsBatchAndSurvivesARebase) {
   std::mt19937_64 rng(3);
   std::vector<Event> ev;

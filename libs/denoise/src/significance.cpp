@@ -24,6 +24,7 @@ constexpr std::int64_t kRebaseAt = std::int64_t{1} << 29;      // relative µs (
 constexpr std::int64_t kKeepOnRebase = std::int64_t{1} << 24;  // history kept exact on a rebase (about 16 s)
 constexpr std::int32_t kZeroSupportUs = 10'000;                // T0 of the rate estimator
 constexpr std::int32_t kShortZeroSupportUs = 1'000;            // T1 < T0: picks the root (update_rate)
+constexpr std::int64_t kWarmupProbeUs = 1'000;                 // warm-up: the whole event rate's update period
 constexpr int kNeighbours = 8;
 constexpr std::int32_t kAgeCap = std::numeric_limits<std::int32_t>::max() / 4;
 
@@ -101,6 +102,9 @@ struct LineArgs {
   const std::int32_t* line_us;  // U_1..U_8; U_8 is the window T' of the walk
   std::int32_t jitter_us;
   float precision;
+  /// false: an event the test rejects gets margin 0 instead of its exact margin (SignificanceOptions::exact_scores;
+  /// match_lines_avx2 then skips the ranks and the divisions).
+  bool margins = true;
 };
 
 constexpr std::int32_t kNoMatch = std::numeric_limits<std::int32_t>::max();
@@ -243,6 +247,34 @@ __attribute__((target("avx2"), always_inline)) inline unsigned decided_avx2(__m2
   return _mm256_movemask_epi8(_mm256_cmpgt_epi32(count, need)) != 0 ? 1U : 0U;
 }
 
+/// kCompact[mask]: the lanes set in mask, in order, then the unset ones (a permutation that packs the set lanes).
+constexpr std::array<std::array<std::uint8_t, 8>, 256> make_compact() noexcept {
+  std::array<std::array<std::uint8_t, 8>, 256> table{};
+  for (unsigned mask = 0; mask < 256; ++mask) {
+    std::size_t n = 0;
+    for (std::uint8_t lane = 0; lane < 8; ++lane)
+      if ((mask >> lane & 1U) != 0) table[mask][n++] = lane;
+    for (std::uint8_t lane = 0; lane < 8; ++lane)
+      if ((mask >> lane & 1U) == 0) table[mask][n++] = lane;
+  }
+  return table;
+}
+constexpr std::array<std::array<std::uint8_t, 8>, 256> kCompact = make_compact();
+
+/// The matched ages (kNoMatch markers for none) sorted ascending into past, then zeros; past_n: the matches.
+__attribute__((target("avx2"), always_inline)) inline void store_sorted_avx2(__m256i v, __m256i highest,
+                                                                             std::int32_t* past, int& past_n) noexcept {
+  v = sort_layer_avx2<0xCC>(v, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5));
+  v = sort_layer_avx2<0xF0>(v, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3));
+  v = sort_layer_avx2<0xAA>(v, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6));
+  v = sort_layer_avx2<0x30>(v, _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7));
+  v = sort_layer_avx2<0x50>(v, _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7));
+  v = sort_layer_avx2<0x54>(v, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));
+  const __m256i matched = _mm256_cmpgt_epi32(highest, v);  // a prefix of the lanes
+  past_n = std::popcount(static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(matched))));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_and_si256(v, matched));
+}
+
 /// The edge-line test with AVX2 (Significance::edge_lines_scalar's decisions and scores): two directions per
 /// register (one per 128-bit half), all 8 thresholds in one register. The first two directions are decided one by
 /// one (an event with dense support stops there); otherwise the other six are matched at once and the first
@@ -300,12 +332,23 @@ __attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::i
   const __m256i c5 = add(c4, u1, _mm256_permute2x128_si256(m45, m45, 0x11));
   const __m256i c6 = add(c5, u1, _mm256_permute2x128_si256(m67, m67, 0x00));
   const __m256i c7 = add(c6, u1, _mm256_permute2x128_si256(m67, m67, 0x11));
-  const unsigned bits = decided_avx2(c2, need) | decided_avx2(c3, need) << 1 | decided_avx2(c4, need) << 2 |
-                        decided_avx2(c5, need) << 3 | decided_avx2(c6, need) << 4 | decided_avx2(c7, need) << 5 |
-                        1U << 5;
-  const int last = 2 + std::countr_zero(bits);  // the last direction examined
+  const unsigned decided = decided_avx2(c2, need) | decided_avx2(c3, need) << 1 | decided_avx2(c4, need) << 2 |
+                           decided_avx2(c5, need) << 3 | decided_avx2(c6, need) << 4 | decided_avx2(c7, need) << 5;
+  const int last = 2 + std::countr_zero(decided | 1U << 5);  // the last direction examined
   ages = _mm256_permutevar8x32_epi32(ages, _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7));
   ages = _mm256_blendv_epi8(ages, k.highest, _mm256_cmpgt_epi32(lane, _mm256_set1_epi32(last)));
+  if (!a.margins && decided == 0) {
+    // Rejected, and its exact margin not wanted: the matches in direction order, unsorted (the joint test sorts
+    // the few that reach it), then zeros.
+    const __m256i matched = _mm256_cmpgt_epi32(k.highest, ages);
+    const auto mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(matched)));
+    const __m256i order =
+        _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(kCompact[mask].data())));
+    const __m256i packed = _mm256_permutevar8x32_epi32(_mm256_and_si256(ages, matched), order);
+    past_n = std::popcount(mask);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), packed);
+    return 0.0F;
+  }
   // The margin from each match's rank (its position in ascending order, ties by direction): max U_rank / max(u, 1),
   // the same terms as over the sorted list, without waiting for the sort.
   __m256i rank = _mm256_setzero_si256();
@@ -320,17 +363,7 @@ __attribute__((target("avx2"))) float match_lines_avx2(const LineArgs& a, std::i
   const __m256 ratio = _mm256_and_ps(_mm256_div_ps(_mm256_cvtepi32_ps(_mm256_permutevar8x32_epi32(u, rank)),
                                                    _mm256_cvtepi32_ps(_mm256_max_epi32(ages, k.one))),
                                      _mm256_castsi256_ps(valid));
-  // The past ages sorted ascending (no-match markers last), then zeros.
-  __m256i v = ages;
-  v = sort_layer_avx2<0xCC>(v, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5));
-  v = sort_layer_avx2<0xF0>(v, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3));
-  v = sort_layer_avx2<0xAA>(v, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6));
-  v = sort_layer_avx2<0x30>(v, _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7));
-  v = sort_layer_avx2<0x50>(v, _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7));
-  v = sort_layer_avx2<0x54>(v, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));
-  const __m256i matched = _mm256_cmpgt_epi32(k.highest, v);  // a prefix of the lanes
-  past_n = std::popcount(static_cast<unsigned>(_mm256_movemask_ps(_mm256_castsi256_ps(valid))));
-  _mm256_storeu_si256(reinterpret_cast<__m256i*>(past), _mm256_and_si256(v, matched));
+  store_sorted_avx2(ages, k.highest, past, past_n);
   __m128 r = _mm_max_ps(_mm256_castps256_ps128(ratio), _mm256_extractf128_ps(ratio, 1));
   r = _mm_max_ps(r, _mm_movehl_ps(r, r));
   r = _mm_max_ss(r, _mm_shuffle_ps(r, r, 0x55));
@@ -734,6 +767,10 @@ void Significance::reset() noexcept {
   base_us_ = 0;
   last_t_us_ = 0;
   ordered_ = true;
+  rate_measured_ = false;
+  start_us_ = 0;
+  first_period_end_us_ = 0;
+  warmup_events_ = 0;
   zero_support_ = 0;
   short_zero_support_ = 0;
   events_ = 0;
@@ -800,6 +837,21 @@ void Significance::set_joint_thresholds() noexcept {
 }
 
 void Significance::update_rate(std::int64_t t_us) noexcept {
+  const double pixels = static_cast<double>(geometry_.width) * geometry_.height;
+  if (!rate_measured_) {
+    // Warm-up: no period has counted zero-support events yet (none can have a neighbour T0 old before count_from).
+    // Noise is part of every event, so the whole event rate so far bounds it: at 100+ Hz/px the assumed
+    // initial_rate_hz alone would let the first periods' noise through.
+    if (t_us < first_period_end_us_) {
+      const double span_s = static_cast<double>(t_us - start_us_) * 1e-6;
+      const double all = static_cast<double>(warmup_events_ + events_) / (span_s * pixels);
+      set_rate(std::max(options_.initial_rate_hz, all));
+      period_end_us_ = std::min(t_us + kWarmupProbeUs, first_period_end_us_);
+      return;
+    }
+    rate_measured_ = true;
+    period_end_us_ = first_period_end_us_;  // the first measured period: [count_from, count_from + period)
+  }
   // Close every period up to t_us (periods without events count as periods without zero-support events).
   const double period_s = static_cast<double>(options_.rate_period_us) * 1e-6;
   const double keep = std::exp(-static_cast<double>(options_.rate_period_us) /
@@ -822,7 +874,6 @@ void Significance::update_rate(std::int64_t t_us) noexcept {
       return;
     }
   }
-  const double pixels = static_cast<double>(geometry_.width) * geometry_.height;
   const double r0 = zero_acc_ / (time_acc_s_ * pixels);        // zero-support events per pixel·s (T0)
   const double r1 = short_zero_acc_ / (time_acc_s_ * pixels);  // ... with the shorter T1
   const double all = events_acc_ / (time_acc_s_ * pixels);     // every event, per pixel·s
@@ -941,8 +992,9 @@ float Significance::edge_lines(std::size_t centre, std::int32_t now, int polarit
   std::array<std::int32_t, 9> found;  // NOLINT(cppcoreguidelines-pro-type-member-init): matched ages, found[0..n)
   std::size_t n = 0;
 #if defined(EVPIPE_SIGNIFICANCE_X86)
-  const LineArgs args{ring_.data(), stride_,   static_cast<std::int64_t>(centre), now, polarity, line_us_.data(),
-                      jitter_us_,   precision_};
+  const LineArgs args{ring_.data(), stride_,    static_cast<std::int64_t>(centre),
+                      now,          polarity,   line_us_.data(),
+                      jitter_us_,   precision_, options_.exact_scores};
   if (kernel_ == kAvx2) return match_lines_avx2(args, past_ages_.data(), past_n_);
   n = match_ages_sse4(args, found);
 #endif
@@ -984,9 +1036,11 @@ bool Significance::accept(const Event& e) noexcept {
   if (!started_) {
     started_ = true;
     base_us_ = e.t_us;
-    period_end_us_ = e.t_us + options_.rate_period_us;
     last_t_us_ = e.t_us;
+    start_us_ = e.t_us;
     count_from_us_ = e.t_us + kZeroSupportUs;  // before that no event can have a neighbour T0 old
+    first_period_end_us_ = count_from_us_ + options_.rate_period_us;
+    period_end_us_ = std::min(e.t_us + kWarmupProbeUs, first_period_end_us_);
   }
   ordered_ = ordered_ && e.t_us >= last_t_us_;
   last_t_us_ = e.t_us;
@@ -1018,6 +1072,8 @@ bool Significance::accept(const Event& e) noexcept {
     zero_support_ += newest > kZeroSupportUs ? 1 : 0;
     short_zero_support_ += newest > kShortZeroSupportUs ? 1 : 0;
     ++events_;
+  } else {
+    ++warmup_events_;
   }
   float ratio = 0.0F;
   if (options_.recency_max_us > 0) {
@@ -1051,7 +1107,7 @@ bool Significance::accept(const Event& e) noexcept {
     kept_surface_ += keep ? 1 : 0;
   }
   if (keep && !kept_.empty()) kept_[centre] = std::max(kept_[centre], now * 2 + polarity);
-  score_ = score;
+  score_ = keep || options_.exact_scores ? score : 0.0F;  // every kernel alike (LineArgs::margins)
   // Stamp the event into its pixel's ring (newest first), kept or not.
   std::int32_t* own = ring_.data() + centre * kRing;
 #if defined(EVPIPE_SIGNIFICANCE_X86)
@@ -1141,13 +1197,25 @@ float Significance::joint_ratio(const Event& e, const std::int32_t* past_ages, i
   const auto centre = static_cast<std::size_t>((e.y + kPad) * stride_ + (e.x + kPad));
   std::array<std::int32_t, 8> future{};
   const int nf = future_lines(centre, static_cast<std::int32_t>(e.t_us - base_us_), e.polarity ? 1 : 0, future);
+  // The past ages ascending (they are unless exact_scores is false: match_lines_avx2 then leaves a rejected event's
+  // matches in direction order); insertion sort, no move when sorted.
+  std::array<std::int32_t, 8> past{};
+  const auto np = static_cast<std::size_t>(std::clamp(past_count, 0, 8));
+  std::copy_n(past_ages, np, past.begin());
+  for (std::size_t i = 1; i < np; ++i) {
+    const std::int32_t x = past[i];
+    std::size_t j = i;
+    for (; j > 0 && past[j - 1] > x; --j) past[j] = past[j - 1];
+    past[j] = x;
+  }
   // Merge the two ascending lists; the ratio max_m V_m / w_(m) over the merged ages.
   float ratio = 0.0F;
-  int i = 0;
-  int j = 0;
-  for (std::size_t m = 0; i < past_count || j < nf; ++m) {
-    const bool take_past = j >= nf || (i < past_count && past_ages[i] <= future[static_cast<std::size_t>(j)]);
-    const std::int32_t w = take_past ? past_ages[i++] : future[static_cast<std::size_t>(j++)];
+  std::size_t i = 0;
+  std::size_t j = 0;
+  const auto n_future = static_cast<std::size_t>(nf);
+  for (std::size_t m = 0; i < np || j < n_future; ++m) {
+    const bool take_past = j >= n_future || (i < np && past[i] <= future[j]);
+    const std::int32_t w = take_past ? past[i++] : future[j++];
     ratio = std::max(ratio, static_cast<float>(joint_us_[m]) / static_cast<float>(std::max(w, 1)));
   }
   return ratio;

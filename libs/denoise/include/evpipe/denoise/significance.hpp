@@ -66,17 +66,20 @@ struct SignificanceOptions {
   std::int64_t timing_jitter_us = 2000;     ///< timestamp jitter between neighbouring pixels
   std::int64_t rate_period_us = 10'000;     ///< BA rate (and thresholds) update period
   std::int64_t rate_memory_us = 1'000'000;  ///< BA rate estimate's memory (exponential forgetting)
-  double initial_rate_hz = 10.0;            ///< BA rate assumed before the first period closes (conservative)
-  bool edge_line = true;                    ///< the edge-line test (false: recency test alone)
-  std::int64_t recency_max_us = 0;          ///< recency test's longest age (0 = no recency test)
+  /// BA rate assumed before the first measured period closes (T0 + rate_period_us after the first event): the
+  /// larger of this and the whole event rate so far (noise is part of it; conservative either way).
+  double initial_rate_hz = 10.0;
+  bool edge_line = true;            ///< the edge-line test (false: recency test alone)
+  std::int64_t recency_max_us = 0;  ///< recency test's longest age (0 = no recency test)
   /// Look-ahead L: an event the causal tests reject waits up to L for its future half-lines (p + d at t + s,
   /// p + 2d at t + 2s), joined with its past ones in one test (0 = causal: decided on arrival). 20 ms: the
   /// pipeline's event -> LCM budget (35 ms p99) minus what the stages after the denoiser add at p99 (~13 ms).
   std::int64_t lookahead_us = 20'000;
-  /// true: every event's score is its exact margin. false: an event the look-ahead rejects because even its
-  /// future candidates' most favourable ages cannot reach the joint thresholds (Significance::joint_may_pass) is
-  /// dropped without the full future walk and keeps its causal score (the same decisions, cheaper at high noise;
-  /// the pipeline runs it so, evdenoise's ROC needs the exact scores).
+  /// true: every event's score is its exact margin. false: the same decisions, cheaper at high noise (the pipeline
+  /// runs it so; evdenoise's ROC needs the exact scores): a kept event's score is exact, a dropped one's only a lower
+  /// bound of its margin - the causal tests give a rejected event 0 (the vector kernel skips the ranks and
+  /// divisions), and an event the look-ahead rejects because even its future candidates' most favourable ages cannot
+  /// reach the joint thresholds (Significance::joint_may_pass) is dropped without the full future walk.
   bool exact_scores = true;
   /// Edge-surface test (slow edges): an event the line tests reject is tested against the plane fitted to the
   /// already-kept events of its 5×5 block (the local normal flow), counting the block's pixels whose events lie on
@@ -112,8 +115,9 @@ class Significance {
   [[nodiscard]] const std::array<std::int32_t, 16>& joint_thresholds_us() const noexcept { return joint_us_; }
 
   // Look-ahead (lookahead_us > 0; SignificanceFilter drives it): after accept() rejected an event, its past
-  // half-lines' smallest matched ages (ascending); later, once every event up to t + L is stamped,
-  // joint_ratio() joins them with the future half-lines: max_m V_m / w_(m) over the merged ages (>= 1: keep).
+  // half-lines' smallest matched ages (ascending; in direction order when exact_scores is false); later, once every
+  // event up to t + L is stamped, joint_ratio() joins them with the future half-lines: max_m V_m / w_(m) over the
+  // merged ages (>= 1: keep).
   [[nodiscard]] int past_line_count() const noexcept { return past_n_; }
   [[nodiscard]] const std::array<std::int32_t, 8>& past_line_ages_us() const noexcept { return past_ages_; }
   [[nodiscard]] float joint_ratio(const Event& e, const std::int32_t* past_ages, int past_count) const noexcept;
@@ -184,7 +188,13 @@ class Significance {
   std::int64_t short_zero_support_ = 0;  // ... younger than T1 (picks the root: rate_from_zero_support)
   std::int64_t events_ = 0;              // every event in the current period
   std::int64_t count_from_us_ = 0;       // the counts start T0 after the first event
-  double zero_acc_ = 0.0;                // forgetting sums
+  // Warm-up, before the first measured period [count_from, count_from + period) closes: the rate is the larger of
+  // initial_rate_hz and the whole event rate so far, re-evaluated every kWarmupProbeUs.
+  bool rate_measured_ = false;
+  std::int64_t start_us_ = 0;  // the first event's time
+  std::int64_t first_period_end_us_ = 0;
+  std::int64_t warmup_events_ = 0;  // events before count_from_us_
+  double zero_acc_ = 0.0;           // forgetting sums
   double short_zero_acc_ = 0.0;
   double events_acc_ = 0.0;
   double time_acc_s_ = 0.0;
