@@ -9,6 +9,7 @@
 #include <random>
 
 #include "evpipe/camera/trajectory.hpp"
+#include "evpipe/denoise/registry.hpp"
 #include "evpipe/pose/estimator.hpp"
 #include "evpipe/sim/noise.hpp"
 #include "evpipe/sim/target3d.hpp"
@@ -476,6 +477,41 @@ TEST(PoseEstimator, HoldsAStillTargetUnderHeavyNoise) {
   holds_a_still_target(5.0, 1);
 }
 
+namespace {
+
+/// The roadheader at 1 m drifting at most 0.04 m/s and 6 deg/s (evsim seed `seed`) over duration_us, with noise_hz
+/// of raw background activity, time-sorted; the prior evsim's 5 cm / 10 deg off the start.
+struct SlowRoadheader {
+  sim::TargetScene scene;
+  std::vector<Event> events;
+  camera::PosePrior prior;
+};
+SlowRoadheader slow_roadheader(std::uint64_t seed, std::int64_t duration_us, double noise_hz) {
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  SlowRoadheader s;
+  s.scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
+  s.scene.model = camera::load_line_model((cfg / "roadheader-wireframe.yaml").string());
+  sim::MotionOptions mo;
+  mo.base = sim::facing_pose(s.scene.model, 1.0, sim::default_view(s.scene.model));
+  mo.pivot_model_m = sim::bbox_centre(s.scene.model);
+  mo.max_speed_m_s = 0.04;
+  mo.max_angular_speed_deg_s = 6.0;
+  std::mt19937_64 rng(seed);
+  s.scene.trajectory = sim::generate_motion(0, duration_us, mo, rng);
+  s.events = sim::render_target(s.scene, 0, duration_us, rng);
+  std::mt19937_64 noise_rng(seed + 1);
+  sim::NoiseOptions no;
+  no.rate_hz_per_pixel = noise_hz;
+  const auto noise = sim::background_activity(SensorGeometry{s.scene.camera.width, s.scene.camera.height}, 0,
+                                              duration_us, no, noise_rng);
+  s.events.insert(s.events.end(), noise.begin(), noise.end());
+  std::stable_sort(s.events.begin(), s.events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  s.prior.pose = sim::perturb_pose(s.scene.trajectory.front().pose, 0.05, 10.0, rng);
+  return s;
+}
+
+}  // namespace
+
 // Slow motion (issue 21): the roadheader at 1 m drifting at most 0.04 m/s and 6 deg/s under 1 Hz/px of raw noise. A
 // 30 ms window then holds ~2 700 noise events and a few hundred of the target's: before, no attempt of 300 ms found
 // 4 lines and nothing was published for the whole 3 s. The longer initialisation accumulation (the newest 20 000 of
@@ -483,29 +519,11 @@ TEST(PoseEstimator, HoldsAStillTargetUnderHeavyNoise) {
 // and tracking accumulates the target's events (track_min_events beyond the measured noise); every published pose
 // must be right.
 TEST(PoseEstimator, TracksASlowTargetUnderNoise) {
-  const std::uint64_t seed = 2202;
-  const auto cfg = evpipe::testing::source_dir() / "config";
-  sim::TargetScene scene;
-  scene.camera = camera::load_camera((cfg / "davis346.yaml").string());
-  scene.model = camera::load_line_model((cfg / "roadheader-wireframe.yaml").string());
-  sim::MotionOptions mo;
-  mo.base = sim::facing_pose(scene.model, 1.0, sim::default_view(scene.model));
-  mo.pivot_model_m = sim::bbox_centre(scene.model);
-  mo.max_speed_m_s = 0.04;
-  mo.max_angular_speed_deg_s = 6.0;
   const std::int64_t duration_us = 3'000'000;
-  std::mt19937_64 rng(seed);
-  scene.trajectory = sim::generate_motion(0, duration_us, mo, rng);
-  std::vector<Event> events = sim::render_target(scene, 0, duration_us, rng);
-  std::mt19937_64 noise_rng(seed + 1);
-  sim::NoiseOptions no;
-  no.rate_hz_per_pixel = 1.0;
-  const auto noise =
-      sim::background_activity(SensorGeometry{scene.camera.width, scene.camera.height}, 0, duration_us, no, noise_rng);
-  events.insert(events.end(), noise.begin(), noise.end());
-  std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
-  camera::PosePrior prior;
-  prior.pose = sim::perturb_pose(scene.trajectory.front().pose, 0.05, 10.0, rng);
+  const SlowRoadheader slow = slow_roadheader(2202, duration_us, 1.0);
+  const sim::TargetScene& scene = slow.scene;
+  const std::vector<Event>& events = slow.events;
+  const camera::PosePrior& prior = slow.prior;
 
   pose::PoseEstimator est(scene.camera, scene.model, prior);
   const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
@@ -536,6 +554,47 @@ TEST(PoseEstimator, TracksASlowTargetUnderNoise) {
   EXPECT_GE(valid, windows_after_first / 2);
   EXPECT_LT(worst_mm, 20.0);  // never a confident wrong pose
   EXPECT_LT(worst_deg, 2.0);
+}
+
+// A held pose must be one the target still has (issue 21): the roadheader drifting at most 0.04 m/s under 5 Hz/px,
+// denoised by evpipe's default filter, keeps a few dozen events a window. Three seeds held poses 20-27 mm / 2.6-2.9
+// deg off, two ways: a track started from a pose found on a long accumulation that the window's own events could not
+// confirm (a blur of the motion, standing for the middle of those events) was held because the image could not have
+// moved a pixel since its stamp; and a verified pose was held while the hold's standstill test, counting the kept
+// events, saw no motion (the denoiser had deleted the creeping edges' events). Now the staleness counts from the
+// middle of the events the pose was fitted on, and the test counts the window's raw events.
+TEST(PoseEstimator, ADriftingTargetIsNotHeldOffItsPose) {
+  const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
+  for (const std::uint64_t seed : {2203, 2204, 2208}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const SlowRoadheader slow = slow_roadheader(seed, 3'000'000, 5.0);
+    const auto filter =
+        denoise::make_filter("significance", {}, SensorGeometry{slow.scene.camera.width, slow.scene.camera.height});
+    const denoise::Decisions d = denoise::run_filter(*filter, slow.events);
+    std::vector<Event> kept;
+    for (std::size_t i = 0; i < slow.events.size(); ++i)
+      if (d.keep[i] != 0) kept.push_back(slow.events[i]);
+    pose::PoseEstimator est(slow.scene.camera, slow.scene.model, slow.prior);
+    int held = 0;
+    double worst_mm = 0.0, worst_deg = 0.0;
+    for (std::int64_t t0 = 0; t0 + kWindow_us <= 2'000'000; t0 += kWindow_us) {
+      const auto lo = std::lower_bound(kept.begin(), kept.end(), t0, before);
+      const auto hi = std::lower_bound(lo, kept.end(), t0 + kWindow_us, before);
+      const auto raw_lo = std::lower_bound(slow.events.begin(), slow.events.end(), t0, before);
+      const auto raw_hi = std::lower_bound(raw_lo, slow.events.end(), t0 + kWindow_us, before);
+      const std::int64_t t_mid = t0 + kWindow_us / 2;
+      const auto out = est.process(EventSpan(lo, hi), t_mid, EventSpan(raw_lo, raw_hi));
+      if (!out.pose_valid) continue;
+      held += out.status == pose::TrackStatus::holding ? 1 : 0;
+      const auto truth = *camera::interpolate(slow.scene.trajectory, t_mid);
+      worst_mm = std::max(worst_mm, 1000.0 * camera::translation_distance_m(out.T_cam_model, truth));
+      worst_deg = std::max(worst_deg, camera::rotation_angle_deg(out.T_cam_model, truth));
+    }
+    std::cout << "seed " << seed << ": " << held << " held windows, worst valid " << worst_mm << " mm / " << worst_deg
+              << " deg\n";
+    EXPECT_LT(worst_mm, 20.0);  // measured before: 20.0 / 12.3 / 27.3 mm
+    EXPECT_LT(worst_deg, 2.0);  // 1.1 / 2.6 / 2.9 deg
+  }
 }
 
 // A crawling target (issue 21): the planar target at 0.8 m moving at most 0.01 m/s and 1.5 deg/s, no noise: ~2 px/s

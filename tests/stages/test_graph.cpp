@@ -319,6 +319,62 @@ TEST(PipelineGraph, ReplayWithTheCurvatureFilterEqualsTheSequentialWindows) {
   replay_equals_sequential(path, "hotpixel,curvature", o);
 }
 
+// Behind a filter each window also carries its unfiltered events (EventWindow::raw_parts: the hold's standstill test
+// counts them): exactly the recording's events in [t0, t1), threaded and sequential alike; none without a filter.
+TEST(PipelineGraph, WindowsBehindAFilterCarryTheirRawEvents) {
+  EVPIPE_REQUIRE_REAL(path, kRecording);
+  std::vector<Event> all;
+  {
+    auto reader = io::open_reader(path);
+    while (auto b = reader->next()) all.insert(all.end(), b->events.begin(), b->events.end());
+  }
+  ASSERT_FALSE(all.empty());
+  class RawChecker final : public WindowProcessor {
+   public:
+    explicit RawChecker(const std::vector<Event>& all) : all_(all) {}
+    pose::PoseEstimate process(const EventWindow& w) override {
+      std::vector<Event> raw;
+      for (const EventSpan& part : w.raw_parts) raw.insert(raw.end(), part.begin(), part.end());
+      const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
+      const auto lo = std::lower_bound(all_.begin(), all_.end(), w.t0_us, before);
+      const auto hi = std::lower_bound(lo, all_.end(), w.t1_us, before);
+      if (!w.raw_parts.empty()) ++with_raw;
+      if (std::vector<Event>(lo, hi) != raw) ++mismatches;
+      if (w.raw_owners.size() != w.raw_parts.size()) ++mismatches;
+      return {};
+    }
+    int with_raw = 0, mismatches = 0;
+
+   private:
+    const std::vector<Event>& all_;
+  };
+  for (const bool threaded : {false, true}) {
+    SCOPED_TRACE(threaded ? "threaded" : "sequential");
+    PipelineOptions o;
+    o.mode = Mode::replay;
+    o.window_us = 30'000;
+    o.hop_us = 10'000;  // sliding windows: the raw batches serve several windows
+    auto source = io::open_reader(path);
+    const auto geometry = source->info().geometry;
+    RawChecker checker(all);
+    RecordingSink sink;
+    Pipeline p(std::move(source), filter_for("significance", geometry), checker, sink, o);
+    const auto error = threaded ? p.run() : p.run_sequential();
+    ASSERT_FALSE(error) << *error;
+    EXPECT_GT(checker.with_raw, 10);
+    EXPECT_EQ(checker.mismatches, 0);
+  }
+  // No filter: the window's events are the raw ones; nothing attached.
+  PipelineOptions o;
+  o.mode = Mode::replay;
+  auto source = io::open_reader(path);
+  RawChecker checker(all);
+  RecordingSink sink;
+  Pipeline p(std::move(source), nullptr, checker, sink, o);
+  ASSERT_FALSE(p.run_sequential());
+  EXPECT_EQ(checker.with_raw, 0);
+}
+
 TEST(PipelineGraph, StatisticsCarryTheFiltersFiguresWhileRunning) {
   // The denoise thread copies the filter's report out as it goes (not only at the end): a statistics message taken
   // while the run is still going has it. The slow pose stage keeps the run going for ~0.4 s.

@@ -87,6 +87,7 @@ void PoseEstimator::reset() {
   filter_.reset();
   fused_ = {};
   standstill_.stop();
+  standstill_raw_.stop();
   set_status(TrackStatus::initialising);
 }
 
@@ -94,7 +95,10 @@ void PoseEstimator::set_status(TrackStatus s) {
   if ((status_ == TrackStatus::tracking || status_ == TrackStatus::holding) && s == TrackStatus::lost) {
     ++counters_.losses;
   }
-  if (s != TrackStatus::holding) standstill_.stop();
+  if (s != TrackStatus::holding) {
+    standstill_.stop();
+    standstill_raw_.stop();
+  }
   status_ = s;
 }
 
@@ -229,10 +233,14 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
   // accumulated events is polished on them first (the nearer start), then on the fresh ones (tracking_events: the
   // window, or a history bounded by the model's image motion; the accumulation spans up to init_accumulate_us).
   out.polished = track_window(job.events, map_, model_, init.T_cam_model, options_.track);
+  EventSpan fitted_on = job.events;
   if (!job.shorter.empty()) {
     // Found on the long accumulation: the newer, shorter one gives the fresher pose when it can be verified on it.
     TrackUpdate shorter = track_window(job.shorter, map_, model_, init.T_cam_model, options_.track);
-    if (shorter.healthy) out.polished = std::move(shorter);
+    if (shorter.healthy) {
+      out.polished = std::move(shorter);
+      fitted_on = job.shorter;
+    }
   }
   if (!out.polished.healthy) {
     out.note = "initialisation found a pose but tracking rejected it: " + out.polished.reason;
@@ -246,6 +254,7 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
     } else {
       out.note =
           "initialised on the accumulated events; the window's own events did not confirm the pose: " + now.reason;
+      if (!fitted_on.empty()) out.blur_span_us = fitted_on.back().t_us - fitted_on.front().t_us;
     }
   }
   out.ok = true;
@@ -390,10 +399,15 @@ EventSpan PoseEstimator::tracking_events(double noise_rate_hz, std::int64_t span
   return extended.size() > window.size() ? extended : window;
 }
 
-PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us) {
+PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us, EventSpan raw) {
   ++counters_.windows;
   remember(window, t_end_us);
-  if (!needs_initialisation()) return counted(track(window, t_end_us, recent_));
+  if (!needs_initialisation()) {
+    raw_ = raw;
+    PoseEstimate out = track(window, t_end_us, recent_);
+    raw_ = {};
+    return counted(std::move(out));
+  }
   PoseEstimate skipped;
   const std::optional<InitJob> job = make_job(window, t_end_us, skipped);
   if (!job) return counted(std::move(skipped));
@@ -477,13 +491,16 @@ PoseEstimate PoseEstimator::track(EventSpan window, std::int64_t t_end_us, Event
     out.note = why;
   }
   // A pose may be held when it was published (verified on its own window), or, an initial pose its window did not
-  // confirm (found on accumulated events), when its edges moved so slowly over them that the image cannot have moved
-  // max_motion_px since (a crawling target). A moving target whose events the denoiser deleted held its blurred
-  // accumulated pose otherwise (the paper's filter: `holding` 11-22 mm / 2.5-5 deg off).
-  const bool holdable = before.last && (last_published_t_us_ == before.last->t_us ||
-                                        before.last_update.max_edge_speed_px_s * 1e-6 *
-                                                static_cast<double>(t_end_us - before.last->t_us) <=
-                                            options_.standstill.max_motion_px);
+  // confirm (found on accumulated events), when its edges moved so slowly that the image cannot have moved
+  // max_motion_px since the middle of those events (a crawling target): the pose stands for that middle, not for
+  // its stamp. A moving target whose events the denoiser deleted held its blurred accumulated pose otherwise (the
+  // paper's filter: `holding` 11-22 mm / 2.5-5 deg off; measured from the stamp, a 0.02 m/s roadheader under 5 Hz/px
+  // was held 11-18 mm off).
+  const bool holdable =
+      before.last && (last_published_t_us_ == before.last->t_us ||
+                      before.last_update.max_edge_speed_px_s * 1e-6 *
+                              static_cast<double>(t_end_us - before.last->t_us + before.last_blur_span_us / 2) <=
+                          options_.standstill.max_motion_px);
   if (!out.pose_valid && options_.hold && status_ == TrackStatus::tracking && track_.confirmed && holdable) {
     // Unhealthy: a still target (no events to measure it on) or a lost one? Decided on the last good pose.
     TrackState after = std::move(track_);
@@ -577,6 +594,7 @@ PoseEstimate PoseEstimator::track_step(TrackState& state, EventSpan window, std:
     }
     state.previous = state.last;
     state.last = camera::StampedPose{t_end_us, u.T_cam_model};
+    state.last_blur_span_us = 0;
     if (state.trail.empty() && state.previous) state.trail.push_back(*state.previous);
     state.trail.push_back(*state.last);
     while (state.trail.size() > 2 && t_end_us - state.trail.front().t_us > options_.speed_baseline_us) {
@@ -622,6 +640,7 @@ PoseEstimator::TrackState PoseEstimator::start_state(const InitOutcome& outcome)
   state.last = camera::StampedPose{outcome.t_us, outcome.polished.T_cam_model};
   state.previous = outcome.previous;
   state.last_update = outcome.polished;
+  state.last_blur_span_us = outcome.measured_at_t ? 0 : outcome.blur_span_us;
   // Advanced on the worker: handed over from a healthy last slice; the slices' healthy updates count (as if in a
   // row: the handover needs the last one healthy, and an unhealthy one among them is rare).
   state.healthy_in_a_row = outcome.caught_up_slices - static_cast<int>(outcome.caught_up_unhealthy);
@@ -714,17 +733,41 @@ bool PoseEstimator::try_hold(EventSpan window, std::int64_t t_end_us) {
     track_.previous.reset();
     track_.trail.clear();
   }
-  if (!standstill_.start(camera_, map_, model_, track_.last->pose, options_.standstill)) return false;
+  // With raw events two tests watch the hold (one false-alarm budget: each at half the significance). The kept
+  // events have little noise, so few of the target's are significant; the raw ones hold all of a creeping target's
+  // (a denoiser deletes most of them) against the sensor's whole noise.
+  StandstillOptions so = options_.standstill;
+  if (!raw_.empty()) so.significance /= 2.0;
+  if (!standstill_.start(camera_, map_, model_, track_.last->pose, so)) return false;
+  standstill_raw_.stop();
+  if (!raw_.empty()) (void)standstill_raw_.start(camera_, map_, model_, track_.last->pose, so);
   const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
-  const StandstillEvidence ev =
-      standstill_.observe(window, window_us, std::numeric_limits<std::int64_t>::min(), window_us);
-  hold_newest_counted_us_ = window.empty() ? std::numeric_limits<std::int64_t>::min() : window.back().t_us;
+  hold_newest_counted_us_ = std::numeric_limits<std::int64_t>::min();
+  hold_newest_raw_us_ = std::numeric_limits<std::int64_t>::min();
+  const StandstillEvidence ev = observe_hold(window, window_us, true, window_us);
   if (ev.moving || ev.unexplained) {
     standstill_.stop();
+    standstill_raw_.stop();
     return false;
   }
   hold_per_px_ = pose_change_per_px(camera_, model_, track_.last->pose);
   return true;
+}
+
+StandstillEvidence PoseEstimator::observe_hold(EventSpan window, std::int64_t window_us, bool all_fresh,
+                                              std::int64_t fresh_us) {
+  constexpr std::int64_t kAll = std::numeric_limits<std::int64_t>::min();
+  StandstillEvidence ev =
+      standstill_.observe(window, window_us, all_fresh ? kAll : hold_newest_counted_us_ + 1, fresh_us);
+  if (!window.empty()) hold_newest_counted_us_ = std::max(hold_newest_counted_us_, window.back().t_us);
+  if (!standstill_raw_.active() || raw_.empty()) return ev;
+  const StandstillEvidence raw =
+      standstill_raw_.observe(raw_, window_us, all_fresh ? kAll : hold_newest_raw_us_ + 1, fresh_us);
+  hold_newest_raw_us_ = std::max(hold_newest_raw_us_, raw_.back().t_us);
+  ev.moving = ev.moving || raw.moving;
+  ev.unexplained = ev.unexplained || raw.unexplained;
+  ev.implied_motion_px = std::max(ev.implied_motion_px, raw.implied_motion_px);
+  return ev;
 }
 
 PoseEstimate PoseEstimator::held_pose(std::int64_t t_end_us, std::size_t window_events) const {
@@ -745,9 +788,8 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   const std::int64_t window_us = std::max<std::int64_t>(options_.track.window_us, 1);
   const std::int64_t fresh_us = std::clamp<std::int64_t>(t_end_us - hold_previous_t_us_, 0, window_us);
   hold_previous_t_us_ = t_end_us;
-  const StandstillEvidence ev = standstill_.observe(window, window_us, hold_newest_counted_us_ + 1, fresh_us);
+  const StandstillEvidence ev = observe_hold(window, window_us, false, fresh_us);
   noise_rate_hz_ = ev.noise_rate_hz;
-  if (!window.empty()) hold_newest_counted_us_ = std::max(hold_newest_counted_us_, window.back().t_us);
   if (!ev.moving) {
     hold_unmeasured_since_us_.reset();
     track_.unhealthy_in_a_row = 0;  // "in a row": a window without motion ends a run of unmeasurable ones
@@ -810,6 +852,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
     track_.fitted.reset();
     track_.last = camera::StampedPose{t_end_us, u.T_cam_model};
     track_.last_update = u;
+    track_.last_blur_span_us = 0;
     ++counters_.hold_resumes;
     set_status(TrackStatus::tracking);
     publish_update(u, out);

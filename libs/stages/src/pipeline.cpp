@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <condition_variable>
+#include <deque>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -69,7 +70,9 @@ class DenoiseStage final : public Stage<EventBatchPtr> {
       : filter_(filter),
         m_(m),
         slicer_({o.window_us, o.hop_us, std::nullopt, o.max_empty_span_us},
-                [this](EventWindow&& w) { emit(std::move(w)); }) {
+                [this](EventWindow&& w) { emit(std::move(w)); }),
+        window_us_(o.window_us),
+        hop_us_(o.hop_us) {
     if (filter) stream_.emplace(*filter);
   }
 
@@ -81,12 +84,22 @@ class DenoiseStage final : public Stage<EventBatchPtr> {
     // FilteredStream flags its next kept batch after a discontinuity within the stream (not before the first event).
     if (batch->discontinuity_before && stream_ && stream_->events_in() > 0) new_segment_pending_ = true;
     if (stream_) {
+      // The unfiltered batches stay shared (not copied) until the windows over them are cut: each window carries its
+      // raw events too (EventWindow::raw_parts; the hold's standstill test counts them). Times restart after a
+      // discontinuity: the old segment's windows still to come get none.
+      if (batch->discontinuity_before) raw_.clear();
+      if (!batch->empty()) raw_.push_back(batch);
       kept_.clear();
       stream_->push(std::move(batch), kept_);
       for (auto& b : kept_) accept(std::make_shared<const EventBatch>(std::move(b)));
       // Time passes although nothing may have been kept (a still target): the windows it completes are cut (not
       // across a clock discontinuity whose first kept event has not reached the slicer yet).
       if (const auto until = stream_->decided_until_us(); until && !new_segment_pending_) slicer_.advance(*until);
+      // A window still to be cut ends after the decided time (else it would have been), so it starts after that
+      // minus its length: older raw batches are not needed (a still scene cuts no window for minutes).
+      if (const auto until = stream_->decided_until_us()) {
+        while (!raw_.empty() && raw_.front()->events.back().t_us < *until - window_us_) raw_.pop_front();
+      }
       // The filter belongs to this thread: its figures are copied out for stats() now and then (a few short
       // strings twice a second), not read by the statistics thread.
       if (const auto now = Clock::now(); now - last_report_ >= kReportPeriod) {
@@ -123,7 +136,24 @@ class DenoiseStage final : public Stage<EventBatchPtr> {
     slicer_.accept(b);
   }
 
+  /// The raw events of [w.t0_us, w.t1_us) into w; drops the raw batches no later window needs.
+  void attach_raw(EventWindow& w) {
+    const auto before = [](const Event& e, std::int64_t t) { return e.t_us < t; };
+    for (const EventBatchPtr& b : raw_) {
+      const EventSpan all = b->span();
+      if (all.back().t_us < w.t0_us) continue;
+      if (all.front().t_us >= w.t1_us) break;
+      const auto lo = std::lower_bound(all.begin(), all.end(), w.t0_us, before);
+      const auto hi = std::lower_bound(lo, all.end(), w.t1_us, before);
+      if (lo == hi) continue;
+      w.raw_parts.emplace_back(lo, hi);
+      w.raw_owners.push_back(b);
+    }
+    while (!raw_.empty() && raw_.front()->events.back().t_us < w.t0_us + hop_us_) raw_.pop_front();
+  }
+
   void emit(EventWindow&& w) {
+    if (stream_) attach_raw(w);
     const auto now = Clock::now();
     // The newest event's batch; an empty window (nothing kept) was completed by time: the input batch being
     // processed when it was cut (with a look-ahead filter, later than the one that brought its end). A source that
@@ -162,6 +192,9 @@ class DenoiseStage final : public Stage<EventBatchPtr> {
   mutable std::mutex report_mu_;
   std::vector<denoise::ReportItem> report_;
   TimeSlicer slicer_;
+  std::int64_t window_us_;
+  std::int64_t hop_us_;
+  std::deque<EventBatchPtr> raw_;  // the unfiltered batches the windows still to be cut may need
   std::vector<EventBatch> kept_;
   Clock::time_point input_read_at_{};
   bool new_segment_pending_ = false;

@@ -67,8 +67,8 @@ PoseProcessor::PoseProcessor(pose::PoseEstimator estimator, std::optional<camera
 
 PoseProcessor::~PoseProcessor() = default;
 
-pose::PoseEstimate PoseProcessor::estimate(EventSpan events, std::int64_t t_us, double& init_ms) {
-  if (!init_worker_) return estimator_.process(events, t_us);  // PoseProcessor::process times an attempt in line
+pose::PoseEstimate PoseProcessor::estimate(EventSpan events, EventSpan raw, std::int64_t t_us, double& init_ms) {
+  if (!init_worker_) return estimator_.process(events, t_us, raw);  // PoseProcessor::process times an attempt in line
   // An attempt runs on the worker: this window waits for nothing.
   if (init_worker_->pending()) {
     std::optional<pose::InitOutcome> outcome = init_worker_->poll();
@@ -98,7 +98,7 @@ pose::PoseEstimate PoseProcessor::estimate(EventSpan events, std::int64_t t_us, 
     }
     return now;
   }
-  return estimator_.process(events, t_us);
+  return estimator_.process(events, t_us, raw);
 }
 
 void PoseProcessor::feed(EventSpan events, std::int64_t t_us) {
@@ -144,13 +144,25 @@ pose::PoseEstimate PoseProcessor::process(const EventWindow& window) {
   if (window.starts_segment && estimator_.counters().windows > 0) {
     estimator_.reset();  // clock jumped: the track is stale
   }
+  // The window's events before denoising, for the hold's standstill test (a denoiser deletes much of a creeping
+  // target's events): copied only while there is a track to hold.
+  EventSpan raw;
+  if (!window.raw_parts.empty() && !estimator_.needs_initialisation()) {
+    if (window.raw_parts.size() == 1) {
+      raw = window.raw_parts.front();
+    } else {
+      raw_scratch_.clear();
+      for (const EventSpan& part : window.raw_parts) raw_scratch_.insert(raw_scratch_.end(), part.begin(), part.end());
+      raw = raw_scratch_;
+    }
+  }
   // The pose is fitted to all events of the window: it best represents the window's middle, which is the
   // time it is stamped with (a 30 ms window lags its end by 15 ms).
   // Timed on this thread: an update, or the window that applies a worker's attempt (with its catch-up); an
   // attempt in line is reported as the initialisation time instead, one on the worker by its own duration.
   double init_ms = 0.0;
   const auto t0 = std::chrono::steady_clock::now();
-  auto estimate = this->estimate(events, window.t0_us + (window.t1_us - window.t0_us) / 2, init_ms);
+  auto estimate = this->estimate(events, raw, window.t0_us + (window.t1_us - window.t0_us) / 2, init_ms);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (estimate.initialised_now && !init_worker_) init_ms = ms;
   if (init_ms > 0.0 && summary_.first_init_ms == 0) summary_.first_init_ms = init_ms;

@@ -29,6 +29,11 @@ struct EventWindow {
   std::vector<EventBatchPtr> owners;
   /// True for the first window after a clock discontinuity (or the first window of the stream).
   bool starts_segment = false;
+  /// Optional: the same interval's events before a filter (a denoiser) chose `parts` (empty when there is no filter,
+  /// or when the window was cut across a clock discontinuity). Spans into the unfiltered batches, kept alive by
+  /// raw_owners.
+  std::vector<EventSpan> raw_parts;
+  std::vector<EventBatchPtr> raw_owners;
 
   [[nodiscard]] std::size_t size() const noexcept;
   [[nodiscard]] bool empty() const noexcept { return size() == 0; }

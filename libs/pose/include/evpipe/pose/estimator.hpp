@@ -179,6 +179,8 @@ struct InitOutcome {
   /// false: the fresh events did not give a healthy polish; the track starts from the accumulation's pose, but this
   /// window's pose is not published as valid (it is a blur of the motion over the accumulation's span).
   bool measured_at_t{true};
+  /// !measured_at_t: the time the events the pose was fitted on span (it stands for their middle, not for t_us).
+  std::int64_t blur_span_us{0};
   std::string note;  ///< why not ok
   std::uint64_t generation{0};
   /// Set by advance_initialisation(): the track was carried on the worker over the windows that passed during
@@ -209,7 +211,10 @@ class PoseEstimator {
   /// window's middle (a pose fitted to a whole window represents its middle); the catch-up after an attempt
   /// run elsewhere cuts its slices centred on such times (a caller passing window ends gets slices half a
   /// window late, which only costs their newest half).
-  PoseEstimate process(EventSpan window, std::int64_t t_end_us);
+  /// `raw` (optional): the same window's events before denoising. The hold's standstill test (StandstillMonitor)
+  /// then counts them: a denoiser deletes much of a creeping target's events, and on the kept ones a roadheader
+  /// drifting 0.03 m/s under 5 Hz/px was held 20 mm off. Without it the test counts `window`.
+  PoseEstimate process(EventSpan window, std::int64_t t_end_us, EventSpan raw = {});
   /// Forget the track (after a clock discontinuity or a device reconnect): next window initialises again.
   void reset();
 
@@ -267,6 +272,9 @@ class PoseEstimator {
     int unhealthy_in_a_row{0};
     bool lost{false};         ///< lost_after_windows unhealthy updates in a row
     TrackUpdate last_update;  ///< the update that measured `last` (its covariance is the held pose's)
+    /// `last` found on accumulated events its window did not confirm (InitOutcome::blur_span_us): their span, 0 when
+    /// `last` was measured at its time.
+    std::int64_t last_blur_span_us{0};
     std::optional<TrackUpdate> previous_update;  ///< the one that measured `previous`
     /// The tracked poses of the current run of updates (since the last start, hold or resume), oldest first, within
     /// speed_baseline_us of the newest: the baseline of history_span_us's speed.
@@ -343,7 +351,11 @@ class PoseEstimator {
   std::vector<Event> recent_;  ///< the newest events (init_accumulate_us, at most a few thousand)
   std::uint64_t generation_{0};
   std::optional<std::int64_t> attempt_t_us_;         ///< an attempt prepared and not completed: its window's time
-  StandstillMonitor standstill_;                     ///< active while holding
+  StandstillMonitor standstill_;                     ///< active while holding (the windows' events)
+  StandstillMonitor standstill_raw_;                 ///< ... on process()'s raw events, when given
+  /// Observes a hold window on both monitors (the raw one when process() got raw events): motion or unexplained
+  /// activity in either; the kept events' noise rate.
+  StandstillEvidence observe_hold(EventSpan window, std::int64_t window_us, bool all_fresh, std::int64_t fresh_us);
   PoseChangePerPx hold_per_px_;                      ///< the held pose's pose_change_per_px (set when a hold starts)
   StandstillMonitor probe_;                          ///< signal_near's scratch
   std::int64_t hold_previous_t_us_{0};               ///< the previous window's time while holding
@@ -352,6 +364,8 @@ class PoseEstimator {
   /// While holding: the first window of the current run of motion that tracking could not measure.
   std::optional<std::int64_t> hold_unmeasured_since_us_;
   std::int64_t hold_newest_counted_us_{0};  ///< newest event counted into the hold's totals
+  std::int64_t hold_newest_raw_us_{0};      ///< ... of the raw events
+  EventSpan raw_{};  ///< during process(): its `raw` events (the hold's standstill test counts them too)
   /// Background activity near the model (events per pixel per second), measured by the last support test
   /// (signal_near) or hold window: what the noise explains of an accumulated history's events.
   double noise_rate_hz_{0.0};

@@ -90,7 +90,7 @@ class PoseProcessor final : public WindowProcessor {
   PoseProcessor(pose::PoseEstimator estimator, std::optional<camera::TrajectoryCsvWriter> csv, std::string csv_path,
                 bool init_worker, int init_worker_nice);
   /// init_ms: set to the worker's compute time when this window applied its successful attempt.
-  pose::PoseEstimate estimate(EventSpan events, std::int64_t t_us, double& init_ms);
+  pose::PoseEstimate estimate(EventSpan events, EventSpan raw, std::int64_t t_us, double& init_ms);
 
   /// Events of the windows that pass while an attempt runs (appended by this thread), taken by the worker once
   /// its attempt has succeeded: it tracks them itself (PoseEstimator::advance_initialisation), so that the window
@@ -112,6 +112,7 @@ class PoseProcessor final : public WindowProcessor {
   WindowObserver* observer_ = nullptr;
   PoseSummary summary_;
   std::vector<Event> scratch_;
+  std::vector<Event> raw_scratch_;  // a window's unfiltered events when they span several batches
 };
 
 /// Without a camera and a model: every window gives an estimate that says so (the events still reach the observer).
