@@ -211,9 +211,9 @@ class PoseEstimator {
   /// window's middle (a pose fitted to a whole window represents its middle); the catch-up after an attempt
   /// run elsewhere cuts its slices centred on such times (a caller passing window ends gets slices half a
   /// window late, which only costs their newest half).
-  /// `raw` (optional): the same window's events before denoising. The hold's standstill test (StandstillMonitor)
-  /// then counts them: a denoiser deletes much of a creeping target's events, and on the kept ones a roadheader
-  /// drifting 0.03 m/s under 5 Hz/px was held 20 mm off. Without it the test counts `window`.
+  /// `raw` (optional): the same window's events before denoising. A hold's standstill test (StandstillMonitor) then
+  /// watches them as well as `window`: a denoiser deletes much of a creeping target's events, and on the kept ones
+  /// alone a roadheader drifting 0.03 m/s under 5 Hz/px was held 20 mm off.
   PoseEstimate process(EventSpan window, std::int64_t t_end_us, EventSpan raw = {});
   /// Forget the track (after a clock discontinuity or a device reconnect): next window initialises again.
   void reset();
