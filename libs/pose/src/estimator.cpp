@@ -755,7 +755,7 @@ bool PoseEstimator::try_hold(EventSpan window, std::int64_t t_end_us) {
 }
 
 StandstillEvidence PoseEstimator::observe_hold(EventSpan window, std::int64_t window_us, bool all_fresh,
-                                              std::int64_t fresh_us) {
+                                               std::int64_t fresh_us) {
   constexpr std::int64_t kAll = std::numeric_limits<std::int64_t>::min();
   StandstillEvidence ev =
       standstill_.observe(window, window_us, all_fresh ? kAll : hold_newest_counted_us_ + 1, fresh_us);

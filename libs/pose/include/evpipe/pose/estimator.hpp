@@ -350,9 +350,9 @@ class PoseEstimator {
   TrackState track_;
   std::vector<Event> recent_;  ///< the newest events (init_accumulate_us, at most a few thousand)
   std::uint64_t generation_{0};
-  std::optional<std::int64_t> attempt_t_us_;         ///< an attempt prepared and not completed: its window's time
-  StandstillMonitor standstill_;                     ///< active while holding (the windows' events)
-  StandstillMonitor standstill_raw_;                 ///< ... on process()'s raw events, when given
+  std::optional<std::int64_t> attempt_t_us_;  ///< an attempt prepared and not completed: its window's time
+  StandstillMonitor standstill_;              ///< active while holding (the windows' events)
+  StandstillMonitor standstill_raw_;          ///< ... on process()'s raw events, when given
   /// Observes a hold window on both monitors (the raw one when process() got raw events): motion or unexplained
   /// activity in either; the kept events' noise rate.
   StandstillEvidence observe_hold(EventSpan window, std::int64_t window_us, bool all_fresh, std::int64_t fresh_us);
