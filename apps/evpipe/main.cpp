@@ -272,12 +272,7 @@ int run(const Cli& cli) {
       return 2;
     }
   }
-  app::RawTap* tap = nullptr;
-  if (preview_lcm || !cli.video.empty() || cli.png_every > 0) {
-    auto t = std::make_unique<app::RawTap>(std::move(source));
-    tap = t.get();
-    source = std::move(t);
-  }
+  const bool preview_on = preview_lcm || !cli.video.empty() || cli.png_every > 0;
   // Built once the source knows the sensor size; parameter errors are configuration errors.
   std::unique_ptr<denoise::Filter> filter;
   if (cfg.denoise.filter != "none") {
@@ -354,7 +349,7 @@ int run(const Cli& cli) {
       return 2;
     }
   }
-  if (tap) {
+  if (preview_on) {
     app::PreviewOptions vo;
     vo.hz = cfg.lcm.preview_hz;
     vo.lcm = preview_lcm;
@@ -372,7 +367,7 @@ int run(const Cli& cli) {
       model = camera::load_line_model(cfg.pose.model);
     }
     try {
-      preview = std::make_unique<app::PreviewWorker>(vo, tap, tap->info().geometry, cfg.window.hop_us, std::move(cam),
+      preview = std::make_unique<app::PreviewWorker>(vo, source->info().geometry, cfg.window.hop_us, std::move(cam),
                                                      std::move(model), &sink);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "evpipe: preview: %s\n", e.what());

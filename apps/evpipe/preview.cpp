@@ -12,34 +12,10 @@
 
 namespace evpipe::app {
 
-EventBatchPtr RawTap::next() {
-  EventBatchPtr batch = inner_->next();
-  if (!batch || batch->empty()) return batch;
-  if (batch->discontinuity_before) release_before_.store(std::numeric_limits<std::int64_t>::min());
-  const std::int64_t before = release_before_.load(std::memory_order_relaxed);
-  const std::lock_guard lock(mutex_);
-  held_.push_back(batch);
-  held_events_ += batch->size();
-  while (!held_.empty() && (held_.front()->events.back().t_us < before || held_events_ > kMaxEvents)) {
-    held_events_ -= held_.front()->size();
-    held_.pop_front();
-    released_any_ = true;
-  }
-  return batch;
-}
-
-bool RawTap::batches(std::int64_t t0_us, std::int64_t t1_us, std::vector<EventBatchPtr>& out) const {
-  const std::lock_guard lock(mutex_);
-  for (const auto& b : held_)
-    if (b->events.back().t_us >= t0_us && b->events.front().t_us < t1_us) out.push_back(b);
-  return !released_any_ || (!held_.empty() && held_.front()->events.front().t_us <= t0_us);
-}
-
-PreviewWorker::PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry geometry, std::int64_t hop_us,
+PreviewWorker::PreviewWorker(PreviewOptions options, SensorGeometry geometry, std::int64_t hop_us,
                              std::optional<camera::CameraModel> camera, std::optional<camera::LineModel> model,
                              const stages::LcmSink* sink)
     : options_(std::move(options)),
-      tap_(tap),
       geometry_(geometry),
       hop_us_(hop_us),
       camera_(camera),
@@ -78,18 +54,12 @@ void PreviewWorker::on_window(const EventWindow& window, const pose::PoseEstimat
     due = index == 0 || now >= next_offer_;
     if (due) next_offer_ = (index == 0 || now - next_offer_ > period) ? now + period : next_offer_ + period;
   }
-  if (!due) {
-    // Nothing pending: what is older than this window is not needed any more.
-    if (tap_ && idle_.load(std::memory_order_acquire)) tap_->release_before(window.t0_us);
-    return;
-  }
+  if (!due) return;
   if (options_.lossless) {
     // Replay with --video / --png-every: every window, in order; the pose thread waits for room (replay only).
     std::unique_lock lock(mutex_);
     cv_.wait(lock, [this] { return queue_.size() < 4 || stop_; });
     queue_.push_back({window, estimate});
-    idle_.store(false, std::memory_order_release);
-    release_locked();
   } else {
     std::unique_lock lock(mutex_, std::try_to_lock);
     if (!lock.owns_lock()) {
@@ -101,17 +71,8 @@ void PreviewWorker::on_window(const EventWindow& window, const pose::PoseEstimat
       ++counters_.dropped;
     }
     queue_.push_back({window, estimate});
-    idle_.store(false, std::memory_order_release);
-    release_locked();
   }
   cv_.notify_one();
-}
-
-void PreviewWorker::release_locked() {
-  if (!tap_ || queue_.empty()) return;
-  std::int64_t needed = queue_.front().window.t0_us;
-  if (building_t0_us_) needed = std::min(needed, *building_t0_us_);
-  tap_->release_before(needed);
 }
 
 void PreviewWorker::run() {
@@ -124,7 +85,6 @@ void PreviewWorker::run() {
       if (queue_.empty()) return;  // stopped and drained
       job = std::move(queue_.front());
       queue_.pop_front();
-      building_t0_us_ = job.window.t0_us;
     }
     cv_.notify_all();  // room for a lossless producer
     try {
@@ -133,9 +93,6 @@ void PreviewWorker::run() {
       const std::lock_guard lock(mutex_);
       if (error_.empty()) error_ = e.what();
     }
-    const std::lock_guard lock(mutex_);
-    building_t0_us_.reset();
-    if (queue_.empty()) idle_.store(true, std::memory_order_release);
   }
 }
 
@@ -154,16 +111,12 @@ void PreviewWorker::build(const Job& job) {
   r.sigma_px = static_cast<float>(e.sigma_px);
   r.note = e.note;
   view::start_image(r, view::preview_grid(geometry_.width, geometry_.height));
+  // Behind a filter the window's raw events (EventWindow::raw_parts); without one its events are the raw ones.
   std::int64_t raw = 0;
-  if (tap_) {
-    std::vector<EventBatchPtr> batches;
-    const bool complete = tap_->batches(w.t0_us, w.t1_us, batches);
-    for (const auto& b : batches) raw += view::mark_raw(r, b->span(), w.t0_us, w.t1_us);
-    if (!complete) r.note += r.note.empty() ? "raw events incomplete" : "; raw events incomplete";
-  }
+  for (const auto& part : w.raw_parts) raw += view::mark_raw(r, part, w.t0_us, w.t1_us);
   std::int64_t kept = 0;
   for (const auto& part : w.parts) kept += view::mark_kept(r, part);
-  r.raw_events = static_cast<std::int32_t>(tap_ ? std::max(raw, kept) : kept);
+  r.raw_events = static_cast<std::int32_t>(std::max(raw, kept));
   r.kept_events = static_cast<std::int32_t>(kept);
   if (camera_ && model_) r.segments = view::project_model(*camera_, *model_, e.T_cam_model);
   r.latency_ms = static_cast<float>(static_cast<double>(last_latency_ns_.load(std::memory_order_relaxed)) / 1e6);

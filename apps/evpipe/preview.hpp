@@ -4,8 +4,9 @@
 // stills (--png-every).
 //
 // Built so that the pose path never waits for it:
-//  * RawTap wraps the source: on the source thread it only keeps the batch pointers it delivered (shared, never
-//    copied) until the pose stage is past them, so that a preview can show the window's raw events too.
+//  * The raw events come with the window: behind a filter the denoise stage attaches them (EventWindow::raw_parts,
+//    shared batches, never copied), and a queued job keeps them alive; without a filter the window's events are the
+//    raw ones.
 //  * The pose thread offers a window and its estimate after the estimate is made (PoseProcessor): a relaxed
 //    atomic store per window, and when a preview is due (preview_hz, host time) a try_lock'ed hand-off of the
 //    window's pointers: a busy builder means the preview is dropped and counted, never a wait. Only a replay with
@@ -37,37 +38,6 @@
 
 namespace evpipe::app {
 
-/// The source wrapper that keeps the raw batches a pending preview may still need.
-class RawTap final : public EventSource {
- public:
-  explicit RawTap(std::unique_ptr<EventSource> inner) : inner_(std::move(inner)) {}
-  EventBatchPtr next() override;
-  [[nodiscard]] bool finished() const override { return inner_->finished(); }
-  [[nodiscard]] const SourceInfo& info() const override { return inner_->info(); }
-  [[nodiscard]] const SourceStats& stats() const override { return inner_->stats(); }
-  [[nodiscard]] std::optional<double> progress() const override { return inner_->progress(); }
-  [[nodiscard]] SourceConnection connection() const noexcept override { return inner_->connection(); }
-  [[nodiscard]] std::uint64_t reconnects() const noexcept override { return inner_->reconnects(); }
-  void stop() noexcept override { inner_->stop(); }
-
-  /// Batches are released once every event in them is older than this (set by the preview side).
-  void release_before(std::int64_t t_us) noexcept { release_before_.store(t_us, std::memory_order_relaxed); }
-  /// The kept batches that may hold events of [t0_us, t1_us). False when some were already released (or dropped at
-  /// the memory cap): the raw events of that window are then incomplete.
-  bool batches(std::int64_t t0_us, std::int64_t t1_us, std::vector<EventBatchPtr>& out) const;
-
-  /// At most this many events held (a stalled pose stage must not grow the tap without bound): the oldest go.
-  static constexpr std::size_t kMaxEvents = 4'000'000;
-
- private:
-  std::unique_ptr<EventSource> inner_;
-  std::atomic<std::int64_t> release_before_{std::numeric_limits<std::int64_t>::min()};
-  mutable std::mutex mutex_;
-  std::deque<EventBatchPtr> held_;
-  std::size_t held_events_ = 0;
-  bool released_any_ = false;
-};
-
 struct PreviewOptions {
   double hz = 10.0;     ///< previews per second (host time); ignored for video frames
   bool lcm = false;     ///< publish preview_t
@@ -98,7 +68,7 @@ struct PreviewCounters {
 class PreviewWorker final : public stages::WindowObserver, public stages::PublishObserver {
  public:
   /// camera/model: for the projected segments (absent: no segments). sink: the latest statistics (drops, p99).
-  PreviewWorker(PreviewOptions options, RawTap* tap, SensorGeometry geometry, std::int64_t hop_us,
+  PreviewWorker(PreviewOptions options, SensorGeometry geometry, std::int64_t hop_us,
                 std::optional<camera::CameraModel> camera, std::optional<camera::LineModel> model,
                 const stages::LcmSink* sink);
   ~PreviewWorker() override;
@@ -124,11 +94,8 @@ class PreviewWorker final : public stages::WindowObserver, public stages::Publis
   };
   void run();
   void build(const Job& job);
-  /// With mutex_ held, after a push: the tap may release what no queued or running job needs.
-  void release_locked();
 
   PreviewOptions options_;
-  RawTap* tap_;
   SensorGeometry geometry_;
   std::int64_t hop_us_;
   std::optional<camera::CameraModel> camera_;
@@ -147,9 +114,6 @@ class PreviewWorker final : public stages::WindowObserver, public stages::Publis
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   std::deque<Job> queue_;
-  /// No job queued or being built: the pose thread may then let the tap release what is older than its window.
-  std::atomic<bool> idle_{true};
-  std::optional<std::int64_t> building_t0_us_;  ///< window start of the job being built (guarded by mutex_)
   bool stop_ = false;
   PreviewCounters counters_;
   std::string error_;

@@ -774,7 +774,7 @@ TEST(PipelineGraph, CameraUnplugAndReplugAreVisibleAndThePipelineKeepsRunning) {
   fake.reset();
 }
 
-// A source wrapping the camera (evpipe's preview tap): forwarding EventSource::connection() and reconnects(), the
+// A source wrapping the camera (as PacedSource does): forwarding EventSource::connection() and reconnects(), the
 // camera's state still shows without the pipeline knowing the camera's type.
 class PassThrough final : public EventSource {
  public:

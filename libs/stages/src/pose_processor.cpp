@@ -132,30 +132,28 @@ pose::InitOutcome PoseProcessor::run_attempt(const pose::InitJob& job) {  // on 
   return estimator_.advance_initialisation(outcome, events, window_t_us);
 }
 
+namespace {
+
+/// The events of `parts` as one span: the single part itself, else copied into `scratch`.
+EventSpan one_span(const std::vector<EventSpan>& parts, std::vector<Event>& scratch) {
+  if (parts.size() == 1) return parts.front();
+  scratch.clear();
+  for (const EventSpan& part : parts) scratch.insert(scratch.end(), part.begin(), part.end());
+  return scratch;
+}
+
+}  // namespace
+
 pose::PoseEstimate PoseProcessor::process(const EventWindow& window) {
-  EventSpan events;
-  if (window.parts.size() == 1) {
-    events = window.parts.front();
-  } else {
-    scratch_.clear();
-    window.for_each([this](const Event& e) { scratch_.push_back(e); });
-    events = scratch_;
-  }
+  const EventSpan events = one_span(window.parts, scratch_);
   if (window.starts_segment && estimator_.counters().windows > 0) {
     estimator_.reset();  // clock jumped: the track is stale
   }
   // The window's events before denoising, for the hold's standstill test (a denoiser deletes much of a creeping
   // target's events): copied only while there is a track to hold.
-  EventSpan raw;
-  if (!window.raw_parts.empty() && !estimator_.needs_initialisation()) {
-    if (window.raw_parts.size() == 1) {
-      raw = window.raw_parts.front();
-    } else {
-      raw_scratch_.clear();
-      for (const EventSpan& part : window.raw_parts) raw_scratch_.insert(raw_scratch_.end(), part.begin(), part.end());
-      raw = raw_scratch_;
-    }
-  }
+  const EventSpan raw = !window.raw_parts.empty() && !estimator_.needs_initialisation()
+                            ? one_span(window.raw_parts, raw_scratch_)
+                            : EventSpan{};
   // The pose is fitted to all events of the window: it best represents the window's middle, which is the
   // time it is stamped with (a 30 ms window lags its end by 15 ms).
   // Timed on this thread: an update, or the window that applies a worker's attempt (with its catch-up); an
