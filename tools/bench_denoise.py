@@ -28,6 +28,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from evpipe_tool_output import machine
+
 ROOT = Path(__file__).resolve().parent.parent
 TARGETS = ["bench_curvature", "bench_denoise", "evdenoise_decisions"]
 
@@ -162,7 +164,7 @@ def main() -> None:
     ap.add_argument("--no-dv", action="store_true", help="skip the dv-processing comparison")
     ap.add_argument("--out", help="also write the report to this file")
     a = ap.parse_args()
-    out: list[str] = [f"# tools/bench_denoise.py on {os.uname().nodename}, {os.cpu_count()} cores", ""]
+    out: list[str] = [f"# tools/bench_denoise.py on {machine()}", ""]
     for preset in a.builds.split(","):
         d = build(preset)
         report_build(preset, d, a.min_time, not a.no_dv, out)

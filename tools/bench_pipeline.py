@@ -53,7 +53,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from evpipe_tool_output import Failure, json_object, last_line
+from evpipe_tool_output import Failure, json_object, last_line, machine
 
 ROOT = Path(__file__).resolve().parent.parent
 PROG = "bench_pipeline.py"
@@ -610,7 +610,7 @@ def main() -> None:
     load0 = loadavg()
     results = [measure(label, b, exes[(label, "evpipe")], scenes, denoisers, a.udpm, a) for label, b in builds]
 
-    out = [f"# tools/bench_pipeline.py on {os.uname().nodename}, {os.cpu_count()} cores, load average {load0} at the "
+    out = [f"# tools/bench_pipeline.py on {machine()}, load average {load0} at the "
            f"start, {loadavg()} at the end; {time.time() - t0:.0f} s", "",
            f"scenes: {cache}", ""]
     for br in results:

@@ -1,9 +1,11 @@
 """Reading what evpipe's programs print, shared by the tools/ scripts that run them (pose_results.py,
-bench_pipeline.py): the one-object-per-line JSON of --json / --metrics and a failure type with the reason."""
+bench_pipeline.py, bench_denoise.py): the one-object-per-line JSON of --json / --metrics, a failure type with the
+reason, and the machine a measurement ran on."""
 
 from __future__ import annotations
 
 import json
+import os
 
 
 class Failure(Exception):
@@ -25,3 +27,17 @@ def json_object(text: str, what: str) -> dict:
             except json.JSONDecodeError as e:
                 raise Failure(f"{what}: bad JSON ({e}): {ln[:200]}")
     raise Failure(f"{what}: no JSON object in its output: {text.strip()[:200]!r}")
+
+
+def machine() -> str:
+    """Host, cores and CPU model: absolute speeds (Mev/s) are only comparable on the same CPU."""
+    model = "unknown CPU"
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for ln in f:
+                if ln.startswith("model name"):
+                    model = ln.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return f"{os.uname().nodename}, {os.cpu_count()} cores, {model}"
