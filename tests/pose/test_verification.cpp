@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <numbers>
 #include <optional>
@@ -132,6 +133,44 @@ TEST(PoseVerify, OneDirectionOfEdgesIsRefused) {
     const auto T = *camera::interpolate(scene.scene.trajectory, t);
     const auto v = pose::verify_pose(slice(scene.events, t - 15'000, t + 15'000), scene.scene.camera, board(true), T);
     EXPECT_FALSE(v.ok) << "window at " << t;
+  }
+}
+
+// Redundancy (VerifyOptions::leave_one_out): three edges of a rectangle (top, left, bottom) give six constraints
+// for six degrees of freedom, so each carries part of the pose alone and a bias on it would move the pose without
+// a residual; they verify without the option and never with it. The whole board (19 edges) stays fixed without any
+// one of them.
+TEST(PoseVerify, APoseThatOneEdgeFixesAloneIsNotRedundant) {
+  const camera::LineModel full = board(true);
+  camera::LineModel three;
+  for (const std::size_t k : {0u, 2u, 3u}) three.segments_m.push_back(full.segments_m[k]);
+  pose::VerifyOptions redundant;
+  redundant.leave_one_out = true;
+  for (const std::uint64_t seed : {32u, 33u, 34u}) {
+    SCOPED_TRACE(::testing::Message() << "seed " << seed);
+    const BoardScene part(three, seed, 0.0);
+    const BoardScene whole(full, seed, 0.0);
+    int part_ok = 0, part_redundant = 0, whole_ok = 0, whole_redundant = 0, windows = 0;
+    for (std::int64_t t = 45'000; t + 15'000 <= 600'000; t += 30'000, ++windows) {
+      const auto T = *camera::interpolate(part.scene.trajectory, t);
+      const pose::MotionHint hint{
+          camera::StampedPose{t - 30'000, *camera::interpolate(part.scene.trajectory, t - 30'000)}, t};
+      const EventSpan p = slice(part.events, t - 15'000, t + 15'000);
+      const EventSpan w = slice(whole.events, t - 15'000, t + 15'000);
+      part_ok += pose::verify_pose(p, part.scene.camera, three, T, {}, hint).ok ? 1 : 0;
+      const pose::VerifyResult r = pose::verify_pose(p, part.scene.camera, three, T, redundant, hint);
+      part_redundant += r.ok ? 1 : 0;
+      if (r.rotation_std_without_deg > 0.0) {
+        EXPECT_GE(r.rotation_std_without_deg, r.rotation_std_deg);
+      }
+      whole_ok += pose::verify_pose(w, whole.scene.camera, full, T, {}, hint).ok ? 1 : 0;
+      whole_redundant += pose::verify_pose(w, whole.scene.camera, full, T, redundant, hint).ok ? 1 : 0;
+    }
+    std::printf("seed %llu: three edges %d / %d redundant, whole board %d / %d redundant, of %d windows\n",
+                static_cast<unsigned long long>(seed), part_ok, part_redundant, whole_ok, whole_redundant, windows);
+    EXPECT_GT(part_ok, 0);
+    EXPECT_EQ(part_redundant, 0);
+    EXPECT_GE(whole_redundant, whole_ok * 8 / 10);
   }
 }
 

@@ -154,6 +154,7 @@ const std::vector<Key>& keys() {
     t.push_back(int_key("pose.init_worker_nice", &R::pose, &PoseFilesConfig::init_worker_nice, 0, 19,
                         "nice increments are 0-19"));
     t.push_back(bool_key("pose.fuse_windows", &R::pose, &PoseFilesConfig::fuse_windows));
+    t.push_back(bool_key("pose.require_redundancy", &R::pose, &PoseFilesConfig::require_redundancy));
     t.push_back(
         real_key("pose.max_acceleration_m_s2", &R::pose, &PoseFilesConfig::max_acceleration_m_s2, 0.001, 1000.0));
     t.push_back(real_key("pose.max_angular_acceleration_deg_s2", &R::pose,
@@ -702,6 +703,7 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "init_worker" << YAML::Value << pose.init_worker;
   out << YAML::Key << "init_worker_nice" << YAML::Value << pose.init_worker_nice;
   out << YAML::Key << "fuse_windows" << YAML::Value << pose.fuse_windows;
+  out << YAML::Key << "require_redundancy" << YAML::Value << pose.require_redundancy;
   out << YAML::Key << "max_acceleration_m_s2" << YAML::Value << pose.max_acceleration_m_s2;
   out << YAML::Key << "max_angular_acceleration_deg_s2" << YAML::Value << pose.max_angular_acceleration_deg_s2;
   out << YAML::EndMap;

@@ -437,6 +437,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     return std::clamp(1.0 - cdf, 0.0, 1.0);
   };
   Matrix6d H = Matrix6d::Zero();
+  std::vector<Matrix6d> H_segment;  // each supporting segment's share of H (VerifyOptions::leave_one_out)
   const double f = 0.5 * (camera.fx + camera.fy);
   const double sigma_n = o.cell_sigma_px / f;
   const Eigen::Matrix3d R = T.rotation();
@@ -483,6 +484,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
       Eigen::Vector2d n_sum = Eigen::Vector2d::Zero();
       for (std::size_t k = 0; k < s.cells; ++k) n_sum += cells[j + k].n_px;
       if (n_sum.norm() > 0.0) supported_normals.push_back(n_sum.normalized());
+      if (o.leave_one_out) H_segment.push_back(Matrix6d::Zero());
     }
     for (std::size_t k = 0; k < s.cells; ++k, ++j) {
       if (!supported[j] || !counts_for_pose) continue;
@@ -496,6 +498,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
       // The cell's normal in normalised coordinates ~ the pixel normal (fx ~ fy; distortion is local).
       const Vector6d g = (c.n_px.transpose() * Jp * dP).transpose();
       H.noalias() += g * g.transpose() / (sigma_n * sigma_n);
+      if (o.leave_one_out) H_segment.back().noalias() += g * g.transpose() / (sigma_n * sigma_n);
     }
   }
   // A required segment without support whose edge shows beside it, parallel within displaced_max_px: the events
@@ -609,6 +612,14 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
   const detail::PoseSpread spread = detail::pose_spread(H, std::max(T.t_cam_model_m.norm(), 1e-3));
   res.rotation_std_deg = spread.rotation_deg;
   res.translation_std_m = spread.translation_m;
+  // Redundancy (leave_one_out; H_segment is empty otherwise): the same without each supporting segment in turn (the
+  // worst). An edge that carries a degree of freedom alone moves the pose by whatever bias it has (unmodelled
+  // structure on it) without a residual to show it.
+  for (const Matrix6d& H_k : H_segment) {
+    const detail::PoseSpread without = detail::pose_spread(H - H_k, std::max(T.t_cam_model_m.norm(), 1e-3));
+    res.rotation_std_without_deg = std::max(res.rotation_std_without_deg, without.rotation_deg);
+    res.translation_std_without_m = std::max(res.translation_std_without_m, without.translation_m);
+  }
 
   if (res.segments_judged == 0) {
     res.reason = "verification: no model segment in view";
@@ -634,6 +645,11 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         "verification: the supported edges do not fix the pose (1 sigma {:.2f} deg / {:.1f} mm; one direction of "
         "motion or too few edges)",
         res.rotation_std_deg, 1000.0 * res.translation_std_m);
+  } else if (!(res.rotation_std_without_deg <= o.max_rotation_std_deg) ||
+             !(res.translation_std_without_m <= o.max_translation_std_m)) {
+    res.reason = fmt::format(
+        "verification: one supported edge alone fixes part of the pose (without it 1 sigma {:.2f} deg / {:.1f} mm)",
+        res.rotation_std_without_deg, 1000.0 * res.translation_std_without_m);
   } else {
     res.ok = true;
   }

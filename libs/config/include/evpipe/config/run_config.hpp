@@ -134,6 +134,9 @@ struct PoseFilesConfig {
   /// Fuse each track's window poses over time (a constant-velocity Kalman filter, docs/algorithms.md "Fusion over
   /// windows"); its motion model is the target's largest linear and angular acceleration.
   bool fuse_windows = true;
+  /// A verified pose must stay fixed without any one of its supporting edges (no single edge carries a degree of
+  /// freedom alone; docs/algorithms.md, "Pose health"): fewer wrong poses beside clutter, fewer poses.
+  bool require_redundancy = false;
   double max_acceleration_m_s2 = 1.0;
   double max_angular_acceleration_deg_s2 = 90.0;
 };
