@@ -687,9 +687,17 @@ TEST(PipelineGraph, SigtermDuringARealTimeReplayDrainsAndEndsWithinTheBound) {
   const auto s = p.stats();
   EXPECT_EQ(s.source.state, SourceState::stopped);
   EXPECT_TRUE(s.error.empty()) << s.error;
-  // Drained: whatever the source handed on was windowed, and every window was published.
+  // Drained: whatever the source handed on was windowed, and every window was published. A paced source is live:
+  // on a machine that falls behind real time for a moment (sanitiser builds on a loaded 2-core runner) it drops whole
+  // batches, counted, rather than wait; what it handed on is what must drain.
   expect_queue_accounting(s);
-  for (const auto& q : s.queues) EXPECT_EQ(q.dropped, 0u) << q.name;
+  for (const auto& q : s.queues) {
+    if (q.name == "batches") {
+      EXPECT_LE(q.dropped, s.stages[0].items_dropped);  // counted by the source too (with pushes cut by the stop)
+    } else {
+      EXPECT_EQ(q.dropped, 0u) << q.name;
+    }
+  }
   EXPECT_EQ(s.stages[1].events_in, s.stages[0].events_out);
   EXPECT_EQ(s.poses_published, s.windows);
   for (const auto& st : s.stages) EXPECT_EQ(st.state, StageState::finished) << st.name;
