@@ -84,7 +84,7 @@ struct VerifyOptions {
   double max_rotation_std_deg = 2.0;
   double max_translation_std_m = 0.02;
   /// Redundancy (`pose.require_redundancy`, off): the bounds above must also hold without any one supported
-  /// segment, so that no single edge carries a degree of freedom alone. Measured on unseen clutter seeds: wrong
+  /// segment, so that no single edge carries a degree of freedom alone. Measured on the unseen seeds: wrong
   /// confident poses 35 -> 1, confident poses -32 % (docs/history.md, session 20).
   bool leave_one_out = false;
   /// Model-frame rigid motions S (T_model_model') to compare the pose T with T * S (model_symmetries(); the
