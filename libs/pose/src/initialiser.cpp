@@ -171,10 +171,16 @@ class SupportCounter {
 
  private:
   std::size_t piece(const Vector2d& p, const Vector2d& q) {
-    const int xa = std::max(0, static_cast<int>(std::floor(std::min(p.x(), q.x()) - band_)));
-    const int xb = std::min(cam_.width - 1, static_cast<int>(std::ceil(std::max(p.x(), q.x()) + band_)));
-    const int ya = std::max(0, static_cast<int>(std::floor(std::min(p.y(), q.y()) - band_)));
-    const int yb = std::min(cam_.height - 1, static_cast<int>(std::ceil(std::max(p.y(), q.y()) + band_)));
+    // Clamped in double before the cast: a point near the camera plane projects billions of pixels away, beyond
+    // int's range (casting that is undefined behaviour); NaN counts as off the sensor. A box wholly off the sensor
+    // gives an empty loop.
+    const auto clamped = [](double v, int size) {
+      return std::isnan(v) ? -1 : static_cast<int>(std::clamp(v, -1.0, static_cast<double>(size)));
+    };
+    const int xa = std::max(0, clamped(std::floor(std::min(p.x(), q.x()) - band_), cam_.width));
+    const int xb = std::min(cam_.width - 1, clamped(std::ceil(std::max(p.x(), q.x()) + band_), cam_.width));
+    const int ya = std::max(0, clamped(std::floor(std::min(p.y(), q.y()) - band_), cam_.height));
+    const int yb = std::min(cam_.height - 1, clamped(std::ceil(std::max(p.y(), q.y()) + band_), cam_.height));
     const Vector2d d = q - p;
     const double dd = std::max(d.squaredNorm(), 1e-12);
     const double b2 = band_ * band_;

@@ -333,7 +333,12 @@ camera::Pose perturb_pose(const camera::Pose& truth, double offset_m, double off
   auto direction = [&] {
     // Isotropic Gaussian, normalised: uniform on the sphere.
     while (true) {
-      const Eigen::Vector3d v(g(rng), g(rng), g(rng));
+      // One draw per statement: the order in which a call's arguments are evaluated is unspecified (GCC goes
+      // right to left, clang left to right), and the same seed must give the same prior with every compiler.
+      const double z = g(rng);
+      const double y = g(rng);
+      const double x = g(rng);
+      const Eigen::Vector3d v(x, y, z);
       if (v.norm() > 1e-6) return Eigen::Vector3d(v.normalized());
     }
   };
