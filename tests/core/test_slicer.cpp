@@ -72,8 +72,9 @@ TEST(TimeSlicer, MatchesBruteForceForFixedAndSlidingWindows) {
     const auto expected = reference(ev, window, hop);
     std::map<std::int64_t, std::vector<Event>> got;
     std::size_t max_retained = 0;
+    const std::int64_t window_us = window;  // a structured binding cannot be captured before clang 16
     TimeSlicer slicer({window, hop, std::nullopt}, [&](const EventWindow& w) {
-      EXPECT_EQ(w.t1_us - w.t0_us, window);
+      EXPECT_EQ(w.t1_us - w.t0_us, window_us);
       EXPECT_FALSE(got.count(w.t0_us)) << "window emitted twice";
       got[w.t0_us] = w.contiguous();
       EXPECT_EQ(w.size(), got[w.t0_us].size());

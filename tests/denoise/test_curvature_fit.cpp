@@ -3,11 +3,15 @@
 #include <gtest/gtest.h>
 
 // GCC 12 reports a false -Wmaybe-uninitialized inside Eigen's AVX-512 kernels (native builds); the pragma
-// covers the header's code only.
+// covers the header's code only (clang has no such warning).
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 #include <Eigen/Dense>
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
+#endif
 #include <cmath>
 #include <random>
 #include <stdexcept>

@@ -52,11 +52,12 @@ struct Json {
   double number = 0;
   std::string string;
   std::vector<Json> array;
-  std::vector<std::pair<std::string, Json>> members;
+  std::vector<std::string> keys;  // an object's members in order: keys[i] names values[i] (not a vector of
+  std::vector<Json> values;       // pairs: clang rejects std::pair of the still incomplete Json)
 
   [[nodiscard]] const Json& at(const std::string& key) const {
-    for (const auto& [k, v] : members)
-      if (k == key) return v;
+    for (std::size_t i = 0; i < keys.size(); ++i)
+      if (keys[i] == key) return values[i];
     throw std::out_of_range("JSON member missing: " + key);
   }
   [[nodiscard]] bool is_null() const { return type == Type::null; }
@@ -130,7 +131,8 @@ class JsonParser {
         space();
         std::string k = str();
         expect(':');
-        v.members.emplace_back(std::move(k), value());
+        v.keys.push_back(std::move(k));
+        v.values.push_back(value());
       } while (eat(','));
       expect('}');
     } else if (c == '[') {
@@ -336,10 +338,10 @@ TEST(Evdenoise, MetricsOnTheUnlabelledSample) {
     // Every parameter of the filter is listed with its (default) value.
     const auto& params = j.at("filters").array[0].at("params");
     const auto described = denoise::describe(*denoise::find_filter(name));
-    ASSERT_EQ(params.members.size(), described.size()) << name;
+    ASSERT_EQ(params.keys.size(), described.size()) << name;
     for (std::size_t i = 0; i < described.size(); ++i) {
-      EXPECT_EQ(params.members[i].first, described[i].key);
-      const Json& v = params.members[i].second;
+      EXPECT_EQ(params.keys[i], described[i].key);
+      const Json& v = params.values[i];
       if (v.type == Json::Type::number) {
         EXPECT_EQ(v.number, std::strtod(described[i].default_value.c_str(), nullptr)) << described[i].key;
       } else {
