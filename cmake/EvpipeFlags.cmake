@@ -52,8 +52,8 @@ endfunction()
 # The numerical libraries build at -O2 in the sanitizer builds (Debug): at -O0 their Eigen expressions and
 # per-event loops run tens of times slower under ASan and the tests that render scenes and solve poses took
 # minutes each; at -O1 GCC still leaves Eigen's small packet functions out of line (the slow-target pose test:
-# 158 s at -O1, 78 s at -O2). Every check stays on at -O2. GCC 12 reports false maybe-uninitialized warnings in
-# Eigen / std headers under the sanitizers, hence the -Wno.
+# 158 s at -O1, 78 s at -O2). ASan checks everything at -O2 too (UBSan: below). GCC 12 reports false
+# maybe-uninitialized warnings in Eigen / std headers under the sanitizers, hence the -Wno.
 # UBSan's alignment and null checks are left out of these libraries: they guard every reference Eigen's expression
 # templates bind and tripled the compile time of the pose sources under ASan (initialiser.cpp: ASan alone 37 s,
 # with all of UBSan 113 s, without those two 44 s). A null dereference still stops under ASan, Eigen's own asserts
