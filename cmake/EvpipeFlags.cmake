@@ -57,7 +57,8 @@ endfunction()
 # UBSan's alignment and null checks are left out of these libraries: they guard every reference Eigen's expression
 # templates bind and tripled the compile time of the pose sources under ASan (initialiser.cpp: ASan alone 37 s,
 # with all of UBSan 113 s, without those two 44 s). A null dereference still stops under ASan, Eigen's own asserts
-# (on in these Debug builds) catch a misaligned fixed-size object, and the readers, runtime and tests keep both.
+# (on in these Debug builds) catch a misaligned fixed-size object, and the readers and the runtime keep both
+# (the test code goes without them too: tests/CMakeLists.txt).
 function(evpipe_optimise_under_sanitizers target)
   if(EVPIPE_SANITIZE OR EVPIPE_TSAN)
     target_compile_options(${target} PRIVATE -O2 $<$<CXX_COMPILER_ID:GNU>:-Wno-maybe-uninitialized>)
