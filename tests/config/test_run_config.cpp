@@ -130,7 +130,7 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
       "lcm: {url: 'memq://', pose_channel: P, stats_channel: S, stats_period_ms: 200, enabled: false}\n"
       "pipeline: {source_queue_packets: 8, source_queue_events: 50000, pose_queue_windows: 1, publish_queue: 4}\n"
       "pose: {ground_truth: gt.csv, lost_after_windows: 5, init_worker: off, init_worker_nice: 3, "
-      "require_redundancy: true}\n");
+      "require_redundancy: true, direct_alignment: true}\n");
   EXPECT_EQ(c.lcm.url, "memq://");
   EXPECT_EQ(c.lcm.pose_channel, "P");
   EXPECT_EQ(c.lcm.stats_period_ms, 200);
@@ -144,6 +144,8 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
   EXPECT_EQ(c.pose.init_worker_nice, 3);
   EXPECT_TRUE(c.pose.require_redundancy);
   EXPECT_FALSE(parse_config("").pose.require_redundancy);
+  EXPECT_TRUE(c.pose.direct_alignment);
+  EXPECT_FALSE(parse_config("").pose.direct_alignment);
   EXPECT_EQ(parse_config(c.to_yaml()).to_yaml(), c.to_yaml());
   EXPECT_NE(error_of("lcm: {stats_period_ms: 5000}").find("lcm.stats_period_ms: must be in [10, 1000]"),
             std::string::npos);

@@ -155,6 +155,7 @@ const std::vector<Key>& keys() {
                         "nice increments are 0-19"));
     t.push_back(bool_key("pose.fuse_windows", &R::pose, &PoseFilesConfig::fuse_windows));
     t.push_back(bool_key("pose.require_redundancy", &R::pose, &PoseFilesConfig::require_redundancy));
+    t.push_back(bool_key("pose.direct_alignment", &R::pose, &PoseFilesConfig::direct_alignment));
     t.push_back(
         real_key("pose.max_acceleration_m_s2", &R::pose, &PoseFilesConfig::max_acceleration_m_s2, 0.001, 1000.0));
     t.push_back(real_key("pose.max_angular_acceleration_deg_s2", &R::pose,
@@ -704,6 +705,7 @@ std::string RunConfig::to_yaml() const {
   out << YAML::Key << "init_worker_nice" << YAML::Value << pose.init_worker_nice;
   out << YAML::Key << "fuse_windows" << YAML::Value << pose.fuse_windows;
   out << YAML::Key << "require_redundancy" << YAML::Value << pose.require_redundancy;
+  out << YAML::Key << "direct_alignment" << YAML::Value << pose.direct_alignment;
   out << YAML::Key << "max_acceleration_m_s2" << YAML::Value << pose.max_acceleration_m_s2;
   out << YAML::Key << "max_angular_acceleration_deg_s2" << YAML::Value << pose.max_angular_acceleration_deg_s2;
   out << YAML::EndMap;

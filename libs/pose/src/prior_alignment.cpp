@@ -332,9 +332,9 @@ struct Cand {
 
 // Pattern search at one level: each parameter +- its step, the best improving move taken; steps halved (twice)
 // when none improves.
-Cand pattern_search(Aligner& al, Cand c, std::array<double, 6> step, double spacing, double h) {
+Cand pattern_search(Aligner& al, Cand c, std::array<double, 6> step, double spacing, double h, int max_moves) {
   c.score = al.score(c.p, spacing, h);
-  for (int halvings = 0, iter = 0; halvings <= 2 && iter < 200; ++iter) {
+  for (int halvings = 0, iter = 0; halvings <= 2 && iter < max_moves; ++iter) {
     Cand best = c;
     for (std::size_t k = 0; k < 6; ++k) {
       for (const double sgn : {-1.0, 1.0}) {
@@ -387,18 +387,31 @@ PriorAlignmentResult align_at_prior(EventSpan events, const camera::CameraModel&
   const double ls_lo = std::log(zc / (zc + prior.position_tolerance_m));
   const double tilt_range = rad(std::min(o.coarse_tilt_deg * o.coarse_tilt_steps, prior.angle_tolerance_deg));
 
-  // Level 0: the grid.
+  // Level 0: the grid, at the finest blur whose work fits max_level0_reads.
+  const int ntilt =
+      o.coarse_tilt_steps > 0 && o.coarse_tilt_deg > 0 ? static_cast<int>(tilt_range / rad(o.coarse_tilt_deg)) : 0;
+  std::vector<Sample> base;
+  al.samples(P, 1.0, base);
+  const auto projected_px = static_cast<double>(base.size());  // the model's image length at the prior (about)
+  const auto level0_reads = [&](double s) {
+    const double a = s / R;
+    const double poses = (2.0 * std::floor(roll_range / a) + 1.0) * (std::floor((ls_hi - ls_lo) / a) + 1.0) *
+                         (std::numbers::pi * std::pow(std::floor(shift_range / s) + 0.5, 2.0)) *
+                         std::pow(2.0 * ntilt + 1.0, 2.0);
+    return poses * (projected_px / s + static_cast<double>(model.segments_m.size()));
+  };
   double sigma = std::max(1.0, std::min(o.coarse_sigma_px, 0.5 * al.parallel_spacing_px()));
+  while (level0_reads(sigma) > o.max_level0_reads && sigma < shift_range) sigma *= 1.25;
   occ.blur(sigma);
   double h = std::max(2.5, 2.5 * sigma);
   occ.contrast(h);
   const double ang_step = sigma / R;
   std::vector<Cand> all;
-  std::vector<Sample> base;
+  // Only the best scores can become candidates: the list is cut back to them as it grows (bounded memory).
+  const std::size_t keep_best = std::max<std::size_t>(o.candidates * 4096, 1);
+  const auto by_score = [](const Cand& a, const Cand& b) { return a.score > b.score; };
   const int nroll = static_cast<int>(std::floor(roll_range / ang_step));
   const int nshift = static_cast<int>(std::floor(shift_range / sigma));
-  const int ntilt =
-      o.coarse_tilt_steps > 0 && o.coarse_tilt_deg > 0 ? static_cast<int>(tilt_range / rad(o.coarse_tilt_deg)) : 0;
   for (int it = -ntilt; it <= ntilt; ++it) {
     for (int jt = -ntilt; jt <= ntilt; ++jt) {
       for (int ir = -nroll; ir <= nroll; ++ir) {
@@ -418,6 +431,10 @@ PriorAlignmentResult align_at_prior(EventSpan events, const camera::CameraModel&
               c.score = al.score_near(base, iu * sigma, iv * sigma);
               all.push_back(c);
             }
+          }
+          if (all.size() >= 4 * keep_best) {
+            std::nth_element(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(keep_best), all.end(), by_score);
+            all.resize(keep_best);
           }
         }
       }
@@ -445,7 +462,7 @@ PriorAlignmentResult align_at_prior(EventSpan events, const camera::CameraModel&
     const bool last = sigma <= 1.0;
     const double spacing = std::max(o.sample_px, 0.5 * sigma);
     const std::array<double, 6> step = {sigma, sigma, sigma / R, sigma / R, 3.0 * sigma / R, 3.0 * sigma / R};
-    for (Cand& c : keep) c = pattern_search(al, c, step, spacing, h);
+    for (Cand& c : keep) c = pattern_search(al, c, step, spacing, h, o.max_moves);
     if (last) break;
     sigma = std::max(1.0, 0.5 * sigma);
     occ.blur(sigma);
@@ -463,7 +480,7 @@ PriorAlignmentResult align_at_prior(EventSpan events, const camera::CameraModel&
         Cand c = best;
         c.p.v[0] += dist * std::cos(k * std::numbers::pi / 4.0);
         c.p.v[1] += dist * std::sin(k * std::numbers::pi / 4.0);
-        keep.push_back(pattern_search(al, c, fine, spacing, h));
+        keep.push_back(pattern_search(al, c, fine, spacing, h, o.max_moves));
       }
     }
   }

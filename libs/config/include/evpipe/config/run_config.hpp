@@ -137,6 +137,9 @@ struct PoseFilesConfig {
   /// A verified pose must stay fixed without any one of its supporting edges (no single edge carries a degree of
   /// freedom alone; docs/algorithms.md, "Pose health"): fewer wrong poses beside clutter, fewer poses.
   bool require_redundancy = false;
+  /// With a prior, when the detected lines give no verified pose: search the pose around the prior by the ridge
+  /// contrast of the events along the projected model (docs/algorithms.md, "Direct alignment with a prior").
+  bool direct_alignment = false;
   double max_acceleration_m_s2 = 1.0;
   double max_angular_acceleration_deg_s2 = 90.0;
 };

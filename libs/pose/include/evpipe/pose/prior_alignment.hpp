@@ -10,8 +10,9 @@
 // (undistorted pixels, one count per pixel: hot pixels and flicker do not dominate), blurred with sigma, sampled on
 // each segment minus the mean of two samples h = max(2.5, 2.5 sigma) to each side across it. Texture, flicker and
 // blobs fill the band and its sides alike (contrast ~ 0); an edge under the segment gives the contrast.
-//   level 0 (sigma = coarse_sigma_px): every shift, roll and scale on a grid of steps sized so that the model's
-//   image moves by sigma per step, tilts on a coarse grid -> the best `candidates` distinct poses;
+//   level 0 (sigma = coarse_sigma_px, coarser where the grid would exceed max_level0_reads): every shift, roll and
+//   scale on a grid of steps sized so that the model's image moves by sigma per step, tilts on a coarse grid -> the
+//   best `candidates` distinct poses;
 //   finer levels (sigma halved down to 1 px): a pattern search per candidate (each parameter +- one step, steps
 //   halved when nothing improves).
 // The best pose at the finest level is returned with the runner-up that lies more than runner_up_px away from it
@@ -48,6 +49,12 @@ struct PriorAlignmentOptions {
   double runner_up_px = 2.5;
   /// Sample spacing along a projected segment at sigma = 1 (pixels; coarser levels sample every sigma / 2).
   double sample_px = 1.0;
+  /// Work bound of level 0: its poses x their samples. The grid's poses grow as sigma^-4 and their samples as
+  /// sigma^-1, so a wide tolerance around a long model at sigma = 1 px meant 10^8 poses (minutes, gigabytes); the
+  /// coarsest blur grows until the grid fits this (about a second on one core).
+  double max_level0_reads = 2e8;
+  /// Pattern-search moves per candidate and level (each moves by a step: the level-0 grid is one step apart).
+  int max_moves = 50;
 };
 
 struct PriorAlignmentResult {
