@@ -50,7 +50,7 @@ struct PriorAlignmentOptions {
   /// Sample spacing along a projected segment at sigma = 1 (pixels; coarser levels sample every sigma / 2).
   double sample_px = 1.0;
   /// Work bound of level 0: its poses x their samples. The grid's poses grow as sigma^-4 and their samples as
-  /// sigma^-1, so a wide tolerance around a long model at sigma = 1 px meant 10^8 poses (minutes, gigabytes); the
+  /// sigma^-1, so a wide tolerance around a long model at sigma = 1 px meant 10^8 poses (minutes per call); the
   /// coarsest blur grows until the grid fits this (about a second on one core).
   double max_level0_reads = 2e8;
   /// Pattern-search moves per candidate and level (each moves by a step: the level-0 grid is one step apart).
