@@ -92,7 +92,8 @@ struct InitialiserOptions {
   /// one-sided detected lines), the pose is searched by aligning the model with the events directly
   /// (prior_alignment.hpp); its best pose and its runner-up are refined by the tracker (track_window with
   /// `verification`) and the pose is accepted only when it verifies and the runner-up, if it verifies too, is
-  /// clearly worse (compare_poses beyond symmetry_decision_log_ratio). Without a verified pose the result is not ok.
+  /// clearly worse (compare_poses beyond symmetry_decision_log_ratio). Without a verified pose from it, the result
+  /// is the line correspondences' (verified or not) as with the option off.
   /// Off by default: on the real evbench board it initialises correctly in most windows but once (seq_0003, 255 ms)
   /// a wrong pose (76 mm / 19 deg) verified; on clutter-planar-lines with a prior it starts the track earlier, and
   /// the tracker then drifts to one wrong confident pose (2.4 deg) that the line search avoided (docs/results-pose.md).
