@@ -110,8 +110,9 @@ def edge_normals(scene, speed, x, y, t_s, width, height):
     return nx, ny, vn
 
 
-def oracle_scores(path: Path, scene: str, speed: float, rate_hz: float):
-    t, x, y, p, label, width, height = load(path)
+def oracle_scores(rec, scene: str, speed: float, rate_hz: float):
+    """The oracle's p-value per event of a loaded recording (load()), its labels and each event's normal speed."""
+    t, x, y, p, label, width, height = rec
     t0 = t.min()
     tr = (t - t0).astype(np.int64)
     t_s = tr * 1e-6
@@ -148,7 +149,7 @@ def oracle_scores(path: Path, scene: str, speed: float, rate_hz: float):
     tail = np.cumsum(dp[:, ::-1], axis=1)[:, ::-1]  # tail[:, k] = P(K >= k)
     pval = tail[np.arange(n), filled]
     pval = np.where(filled == 0, 1.0, pval)
-    return pval, label
+    return pval, label, vn
 
 
 def figures(keep, label):
@@ -178,13 +179,11 @@ def best_f1(pval, label):
     return f, sr, nr, float(pv[i])
 
 
-def subsets(path: Path, scene: str, speed: float, label):
+def subsets(t, vn, label):
     """Masks of the events scored on the target's edges: every noise event plus the signal events on edges in the
     target's speed range ("in range"), and of those only the ones whose edge has crossed the 2 pixels behind it
     since the scene started (t >= 2 / v_n, "settled": the history any line or surface in the 5x5 block needs)."""
-    t, x, y, _, _, width, height = load(path)
     t_s = (t - t.min()) * 1e-6
-    _, _, vn = edge_normals(scene, speed, x, y, t_s, width, height)
     noise = label == 0
     in_range = noise | (vn >= TARGET_MIN_SPEED_PX_S)
     with np.errstate(divide="ignore"):
@@ -192,12 +191,12 @@ def subsets(path: Path, scene: str, speed: float, label):
     return in_range, settled
 
 
-def filter_keep(path: Path, evdenoise: str):
-    """significance's decisions per event of the recording, and its metrics."""
+def filter_keep(path: Path, rec, evdenoise: str):
+    """significance's decisions per event of the recording (rec: its load()), and its metrics."""
     out = path.with_suffix(".oracle-out.txt")
     r = subprocess.run([evdenoise, str(path), str(out), "--filter", "significance", "--metrics"],
                        capture_output=True, text=True, check=True)
-    t, x, y, p, _, _, _ = load(path)
+    t, x, y, p = rec[:4]
     kept = np.loadtxt(out, dtype=np.int64, comments="#", ndmin=2)
     out.unlink(missing_ok=True)
     key = lambda a, b, c, d: ((a * 4096 + b) * 4096 + c) * 2 + d  # noqa: E731 (t, x, y, polarity)
@@ -209,16 +208,17 @@ def filter_keep(path: Path, evdenoise: str):
 def evaluate(path: Path, scene: str, speed: float, rate: float, evdenoise: str | None):
     """(oracle at alpha, oracle best, filter) over every event, then the filter's and the oracle's best F1 over the
     in-range and the settled subsets (None without evdenoise)."""
-    pval, label = oracle_scores(path, scene, speed, rate)
+    rec = load(path)
+    pval, label, vn = oracle_scores(rec, scene, speed, rate)
     at_alpha = figures(pval <= ALPHA, label)
     best = best_f1(pval, label)
     filt = None
     split = None
     if evdenoise:
-        keep, m = filter_keep(path, evdenoise)
+        keep, m = filter_keep(path, rec, evdenoise)
         filt = (m["sr"], m["nr"], m["f1"])
         split = {}
-        for name, mask in zip(("in_range", "settled"), subsets(path, scene, speed, label)):
+        for name, mask in zip(("in_range", "settled"), subsets(rec[0], vn, label)):
             split[name] = {"signal": int(np.sum(label[mask] == 1)), "significance": figures(keep[mask], label[mask]),
                            "oracle_best": best_f1(pval[mask], label[mask])}
     return at_alpha, best, filt, split

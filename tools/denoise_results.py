@@ -137,7 +137,7 @@ READING_NOTES = [
     "over hundreds of ms, and the filter, not knowing the motion, must find them as 2-pixel lines in any of 8 "
     "directions at any age (with the false-alarm cost of that search and a 4-event ring per pixel). The oracle "
     "(subsection of (e)) knows the motion and counts single predicted events: the gap between the two is what a "
-    "better statistic could still win; where the oracle itself is below a target (3 px/s at 1 Hz/px and, at the "
+    "better statistic could still win; where the oracle itself is below a target over the whole scene (3 px/s at 1 Hz/px and, at the "
     "target's edge, at 5 Hz/px), the neighbourhood does not hold the information: in a 1 s scene a 3 px/s edge has "
     "crossed one pixel behind it after 333 ms and two after 667 ms, and with T = 0.5 s only one is in view. "
     "Where the misses are (the oracle table's second part): translating-rect's sides along its motion move at "
