@@ -3,9 +3,17 @@
 # scenes like the results page's (planar decoy 0.8 m, roadheader decoy 1 m, planar 1.0 m at 3 Hz/px, a 2 s stop at
 # 5 Hz/px) with other seeds, replayed raw and with `significance` (decoys also without the prior), scored by
 # evpose-eval. Prints one line per run and the totals. Uses build/release (cmake --preset release first).
+# --standard adds the results page's 24 standard scenes (planar / roadheader at 0.6 / 0.8 / 1.0 m, 0-5 Hz/px, 3 s)
+# made with seed 41 (planar) / 42 (roadheader) instead of the page's 1 / 2, totalled apart (48 runs more; session 23:
+# 0 wrong confident of 4 106).
 #
-#   tools/pose_seeds.sh [EVPIPE_BINARY] [OUT_DIR]
+#   tools/pose_seeds.sh [--standard] [EVPIPE_BINARY] [OUT_DIR]
 set -euo pipefail
+standard=0
+if [ "${1:-}" = --standard ]; then
+  standard=1
+  shift
+fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=${1:-$root/build/release/apps/evpipe/evpipe}
 out=${2:-$root/build/pose-seeds}
@@ -28,6 +36,14 @@ for s in 7401 7402 7403 7404 7405 7406; do gen "planar-decoy-$s" target-planar.y
 for s in 7401 7402 7403; do gen "roadheader-decoy-$s" roadheader-wireframe.yaml 1.0 1 "$s" 3000 --distractor decoy; done
 for s in 7411 7412 7413; do gen "planar-d1.0-n3-$s" target-planar.yaml 1.0 3 "$s" 3000; done
 for s in 7421 7422 7423; do gen "stop-rh-s2-n5-$s" roadheader-wireframe.yaml 1.0 5 "$s" 4700 --stop 1.2:2; done
+if [ "$standard" = 1 ]; then
+  for d in 0.6 0.8 1.0; do
+    for n in 0 1 3 5; do
+      gen "std-planar-d$d-n$n-41" target-planar.yaml "$d" "$n" 41 3000
+      gen "std-roadheader-d$d-n$n-42" roadheader-wireframe.yaml "$d" "$n" 42 3000
+    done
+  done
+fi
 
 run() {  # scene filter [noprior]
   local s=$out/scenes/$1 tag=$1.$2${3:+.noprior}
@@ -42,10 +58,15 @@ run() {  # scene filter [noprior]
 export -f run
 export bin out eval_bin
 for s in $(cd "$out/scenes" && ls ./*.aedat4 | sed 's|^\./||; s|\.aedat4$||'); do
+  case $s in std-*) [ "$standard" = 1 ] || continue ;; esac
   for f in none significance; do
     echo "$s $f"
     case $s in *decoy*) echo "$s $f noprior" ;; esac
   done
 done | xargs -P 2 -L 1 bash -c 'run "$@"' _ | sort | tee "$out/summary.txt"
-awk '{w += $2; c += $3} END {printf "total: %d wrong confident of %d confident poses, %d runs\n", w, c, NR}' \
+awk '!/^std-/ {w += $2; c += $3; n++} END {printf "total: %d wrong confident of %d confident poses, %d runs\n", w, c, n}' \
   "$out/summary.txt"
+if [ "$standard" = 1 ]; then
+  awk '/^std-/ {w += $2; c += $3; n++} END {printf "standard scenes: %d wrong confident of %d confident poses, %d runs\n", w, c, n}' \
+    "$out/summary.txt"
+fi
