@@ -1,9 +1,13 @@
 // evpipe-lcm-echo: prints evpipe's LCM messages (pose_t, stats_t) as JSON or text lines, live from an LCM URL or
 // from an LCM log file. For operators without a display (lcm-spy is a GUI) and for end-to-end tests.
 // Messages are recognised by their LCM fingerprint, so any channel name works; other types print as
-// {"channel":..., "type":null, "bytes":N}.
+// {"channel":..., "type":null, "bytes":N}; a pose_t or stats_t that is invalid, truncated or has an array count
+// beyond its bytes as {"channel":..., "type":null, "error":"<type>.<field> ..."}.
+// A --log is printed as it is read; at the first event that is not whole (bad sync word, a length beyond the end
+// of the file, truncated) the events before it have been printed and the error names the file and byte offset.
 // Exit status: 0 done (count reached, timeout without --count, end of log, SIGINT/SIGTERM), 1 LCM or log error (a
-// --log that is not an LCM log) or --count not reached before --timeout, 2 usage error (an invalid --url).
+// --log that is not an LCM log, or corrupt or truncated) or --count not reached before --timeout, 2 usage error
+// (an invalid --url).
 
 #include "evpipe/core/file.hpp"
 #include "evpipe/transport/codec.hpp"
@@ -38,6 +42,10 @@ std::string render(const evpipe::transport::ReceivedMessage& m, bool text) {
   } catch (const DecodeError& e) {
     return text ? fmt::format("{} invalid message: {}", m.channel, e.what())
                 : fmt::format(R"({{"channel":"{}","type":null,"error":"{}"}})", m.channel, e.what());
+  }
+  if (const auto why = wire_error(m.data.data(), m.data.size())) {  // an evpipe type, truncated or corrupt
+    return text ? fmt::format("{} invalid message: {}", m.channel, *why)
+                : fmt::format(R"({{"channel":"{}","type":null,"error":"{}"}})", m.channel, *why);
   }
   return text ? fmt::format("{} ({} bytes, not an evpipe type)", m.channel, m.data.size())
               : fmt::format(R"({{"channel":"{}","type":null,"bytes":{}}})", m.channel, m.data.size());
@@ -79,9 +87,8 @@ int main(int argc, char** argv) {
 
   if (!log_path.empty()) {
     try {
-      for (const auto& m : evpipe::transport::read_lcm_log(log_path)) {
-        print(m);
-      }
+      // Printed as read: the events before a corrupt or truncated one are printed, then the error (exit 1).
+      evpipe::transport::read_lcm_log(log_path, [&](evpipe::transport::ReceivedMessage&& m) { print(m); });
     } catch (const std::exception& e) {
       std::fprintf(stderr, "evpipe-lcm-echo: %s\n", e.what());
       return 1;

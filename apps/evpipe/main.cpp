@@ -109,6 +109,27 @@ evpipe::io::ReaderOptions reader_options(const evpipe::config::SourceConfig& s) 
   return o;
 }
 
+// A file in `dir` named like a --png-every still (evpipe-NNNNNN.png) that is one of `files` (links followed), as
+// "<still> is <file>"; nullopt when none (or `dir` does not exist yet).
+std::optional<std::string> still_collision(const std::string& dir, const std::vector<std::string>& files) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    constexpr std::string_view kPrefix = "evpipe-", kSuffix = ".png";
+    if (name.size() < kPrefix.size() + 6 + kSuffix.size() || !name.starts_with(kPrefix) || !name.ends_with(kSuffix))
+      continue;
+    const std::string_view digits =
+        std::string_view(name).substr(kPrefix.size(), name.size() - kPrefix.size() - kSuffix.size());
+    if (!std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    for (const std::string& f : files) {
+      std::error_code eq;
+      if (!f.empty() && fs::equivalent(it->path(), f, eq)) return it->path().string() + " is " + f;
+    }
+  }
+  return std::nullopt;
+}
+
 // Does cfg ask for initialisation on a worker thread (pose.init_worker, "auto" resolved)?
 bool init_on_worker(const evpipe::config::RunConfig& cfg) {
   const std::string& w = cfg.pose.init_worker;
@@ -209,7 +230,13 @@ int run(const Cli& cli) {
       !pc.ground_truth.empty()) {
     try {
       pose_stage = stages::PoseProcessor::create(pose_options(cfg, inputs));
-      if (!pc.ground_truth.empty()) truth = camera::read_trajectory_csv(pc.ground_truth);
+      if (!pc.ground_truth.empty()) {
+        truth = camera::read_trajectory_csv(pc.ground_truth);
+        if (truth.empty()) {
+          throw std::invalid_argument(fmt::format(
+              "pose.ground_truth: {}: no trajectory row (nothing to score the poses against)", pc.ground_truth));
+        }
+      }
     } catch (const std::invalid_argument& e) {
       std::fprintf(stderr, "evpipe: configuration error: %s\n", e.what());
       return 2;
@@ -337,18 +364,25 @@ int run(const Cli& cli) {
   spdlog::debug("denoise: {} thread(s)", po.denoise_threads);
   stages::LcmSink sink(publisher.get(), pose_stage.get(), live, !truth.empty());
   std::unique_ptr<app::PreviewWorker> preview;
+  // The inputs and the outputs that exist now (the poses CSV, the LCM log): the video and the stills must not
+  // overwrite any of them (a log that did not exist yet passed the first video check by name).
+  std::vector<std::string> files = inputs;
+  files.push_back(cfg.pose.poses_out);
+  if (transport::LcmUrl u; publisher && publisher->writes_log() &&
+                           !transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true, &u))
+    files.push_back(u.target);
   if (!cli.video.empty()) {
-    // Checked again now that the poses CSV and the LCM log exist: the video must not overwrite them either (a log
-    // that did not exist yet passed the first check by name).
-    std::vector<std::string> files = inputs;
-    files.push_back(cfg.pose.poses_out);
-    if (transport::LcmUrl u; publisher && publisher->writes_log() &&
-                             !transport::check_lcm_url(transport::effective_lcm_url(cfg.lcm.url), true, &u))
-      files.push_back(u.target);
     try {
       check_output_file(cli.video, files);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "evpipe: configuration error: --video: %s\n", e.what());
+      return 2;
+    }
+    files.push_back(cli.video);
+  }
+  if (cli.png_every > 0) {
+    if (const auto clash = still_collision(cli.png_dir, files)) {
+      std::fprintf(stderr, "evpipe: configuration error: --png-dir: %s: refusing to overwrite it\n", clash->c_str());
       return 2;
     }
   }
@@ -362,6 +396,7 @@ int run(const Cli& cli) {
     vo.video_fps = cli.video_fps;
     vo.png_every = cli.png_every;
     vo.png_dir = cli.png_dir;
+    vo.protected_files = files;
     vo.lossless = !live && (!cli.video.empty() || cli.png_every > 0);  // a replay's video / stills: every window
     std::optional<camera::CameraModel> cam;
     std::optional<camera::LineModel> model;
@@ -543,8 +578,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.1, 30.0));
   app.add_option("--video", cli.video,
                  "Write the preview of every window to this video (.mp4: MPEG-4 via FFmpeg; .avi: Motion JPEG)");
-  app.add_option("--video-fps", cli.video_fps, "Video frame rate (default: sensor time, 1 / window.hop_us)")
-      ->check(CLI::PositiveNumber);
+  app.add_option("--video-fps", cli.video_fps,
+                 "Video frame rate in [0.1, 1000] (default: sensor time, 1 / window.hop_us)")
+      ->check(CLI::Range(0.1, 1000.0));
   app.add_option("--png-every", cli.png_every, "Write every Nth window's preview as PNG (to --png-dir)")
       ->check(CLI::PositiveNumber);
   app.add_option("--png-dir", cli.png_dir, "Folder for --png-every stills (default: .)");

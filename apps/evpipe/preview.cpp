@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <filesystem>
 
+#include "evpipe/core/file.hpp"
 #include "evpipe/runtime/background_task.hpp"
 #include "evpipe/view/frame.hpp"
 #include "evpipe/view/render.hpp"
@@ -153,8 +154,10 @@ void PreviewWorker::build(const Job& job) {
     const cv::Mat img = view::render_preview(r, ro);
     if (video_) output_->write_video(img);
     if (options_.png_every > 0 && index % static_cast<std::uint64_t>(options_.png_every) == 0) {
-      output_->write_png((std::filesystem::path(options_.png_dir) / fmt::format("evpipe-{:06}.png", index)).string(),
-                         img);
+      const std::string path =
+          (std::filesystem::path(options_.png_dir) / fmt::format("evpipe-{:06}.png", index)).string();
+      check_output_file(path, options_.protected_files);  // a still never replaces an input or another output
+      output_->write_png(path, img);
       const std::lock_guard lock(mutex_);
       ++counters_.pngs;
     }

@@ -46,6 +46,8 @@ struct PreviewOptions {
   double video_fps = 0;  ///< 0 = sensor time (1 / window hop)
   int png_every = 0;     ///< every Nth window as PNG (0 = none)
   std::string png_dir = ".";
+  /// Files no still may overwrite (the inputs and the other outputs; a link of one counts): checked per still.
+  std::vector<std::string> protected_files;
   bool lossless = false;  ///< replay: the pose thread waits for the builder (video/PNGs of every window)
   int zoom = 2;
   int nice = 10;

@@ -669,7 +669,10 @@ int main(int argc, char** argv) {
       app.add_option("--pure-noise", c.pure_noise, "Paper protocol: exactly N noise events in 30 ms, no scene");
   // 2D
   auto* scene = app.add_option("--scene", c.scene_name, "2D scene: rotating-bar, translating-rect, demo");
-  auto* speed = app.add_option("--speed", c.speed, "2D scene speed factor")->check(CLI::PositiveNumber);
+  // Bounded: the events grow with the speed (x1 is 60-240 px/s; x100 is beyond any sensor's pixel rate), and 1e300
+  // generated events for ever.
+  auto* speed =
+      app.add_option("--speed", c.speed, "2D scene speed factor, in (0, 100]")->check(CLI::Range(1e-6, 100.0));
   // 3D
   auto* cam = app.add_option("--camera", c.camera_file, "3D: camera calibration (evpipe YAML or OpenCV FileStorage)");
   auto* model = app.add_option("--model", c.model_file, "3D: line model of the target (YAML or DXF)");

@@ -427,6 +427,10 @@ TEST(Evsim, UsageErrorsExitTwo) {
           " --orientation 1,0,0" + out);
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find("--orientation"), std::string::npos) << r.err;
+  // The 2D speed factor is bounded: --speed 1e300 generated events for ever (hostile test, session 23).
+  r = run(kEvsim + " --scene rotating-bar --duration-ms 10 --speed 1e300" + out);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--speed"), std::string::npos) << r.err;
   // A bad model file is an input error (1) naming the file.
   const std::string bad = (dir / "bad.yaml").string();
   std::ofstream(bad) << "model:\n  units: cm\n  lines: [[0, 0, 0, 1, 0, 0]]\n";

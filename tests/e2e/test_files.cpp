@@ -142,6 +142,36 @@ TEST_F(Files, EvpipeOutputsNamingAnInputAreRefusedBeforeTruncating) {
   EXPECT_THAT(video_log.err, HasSubstr("--video: " + path("log.mp4"))) << video_log.err;
 }
 
+// Hostile test (session 23): --png-every stills are named evpipe-NNNNNN.png in --png-dir; an input or an output of
+// that name there (or a link of one) was overwritten by a still, exit 0.
+TEST_F(Files, StillsNeverOverwriteAnInputOrAnOutput) {
+  fs::create_directories(path("stills"));
+  fs::create_hard_link(path("rh.camera.yaml"), path("stills/evpipe-000003.png"));
+  const std::string before = slurp(path("rh.camera.yaml"));
+  const auto r = evpipe("--no-lcm --png-every 1 --png-dir " + q(path("stills")));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("--png-dir: " + path("stills/evpipe-000003.png") + " is ")) << r.err;
+  EXPECT_EQ(slurp(path("rh.camera.yaml")), before);
+  fs::remove(path("stills/evpipe-000003.png"));
+  const auto csv = evpipe("--no-lcm --poses-out " + q(path("stills/evpipe-000002.png")) + " --png-every 1 --png-dir " +
+                          q(path("stills")));
+  EXPECT_EQ(csv.status, 2);
+  EXPECT_THAT(slurp(path("stills/evpipe-000002.png")), ::testing::StartsWith("t_us,")) << csv.err;
+  const auto ok = evpipe("--no-lcm --png-every 10 --png-dir " + q(path("stills")));
+  EXPECT_EQ(ok.status, 0) << ok.err;
+  EXPECT_TRUE(fs::exists(path("stills/evpipe-000000.png")));
+}
+
+// Hostile test (session 23): a ground truth with a header and no row was accepted silently (no ATE, exit 0).
+TEST_F(Files, AGroundTruthWithoutRowsIsAConfigurationError) {
+  std::ofstream(path("empty.gt.csv")) << "t_us,x_m,y_m,z_m,qw,qx,qy,qz\n";
+  const auto r = run(kEvpipe + " --no-lcm --replay " + q(path("rh.aedat4")) + " --camera " + q(path("rh.camera.yaml")) +
+                     " --model " + q(path("rh.model.yaml")) + " --ground-truth " + q(path("empty.gt.csv")) +
+                     " --speed max --no-progress");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.err, HasSubstr("empty.gt.csv: no trajectory row")) << r.err;
+}
+
 // Row 9: a FIFO without a writer as an input blocked open() for ever.
 TEST_F(Files, AFifoAsAnyInputFailsAtOnce) {
   const std::string fifo = path("fifo");

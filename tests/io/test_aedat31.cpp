@@ -163,7 +163,7 @@ TEST(Aedat31RoundTrip, GeometryTravelsInTheSourceLine) {
 
 TEST(Aedat31RoundTrip, NegativeAndHugeTimestamps) {
   std::vector<Event> events = {
-      {-5 * k31 - 3, 1, 2, true}, {-1, 3, 4, false}, {0, 5, 6, true}, {(std::int64_t{1} << 61) + 12345, 7, 8, false}};
+      {-5 * k31 - 3, 1, 2, true}, {-1, 3, 4, false}, {0, 5, 6, true}, {kMaxAbsTimestampUs - 12345, 7, 8, false}};
   io::WriterOptions wo;
   ReaderOptions ro;
   ro.out_of_order = io::OutOfOrderPolicy::keep;

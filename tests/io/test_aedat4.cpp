@@ -576,6 +576,26 @@ TEST_F(Aedat4Files, EventsOutsideTheSensorNameTheirPacket) {
   }
 }
 
+// A damaged packet decoding to a timestamp near the int64 limits made the filters' time steps overflow and spin
+// (hostile test, session 23): the reader refuses it as corrupt, naming the packet; the packets before it are read.
+TEST_F(Aedat4Files, TimestampsBeyondTheSupportedRangeNameTheirPacket) {
+  auto events = synthetic_events(1000, kDavis346);
+  events.back().t_us = INT64_MAX;
+  WriterOptions w;
+  w.packet_events = 100;
+  Bytes b = write(events, w, true);
+  const auto raw = packets(b);
+  try {
+    decode_bytes(b);
+    FAIL() << "expected FormatError";
+  } catch (const FormatError& e) {
+    EXPECT_EQ(e.offset(), raw[9].header_at + 8);
+    EXPECT_NE(e.reason().find("outside the supported range"), std::string::npos) << e.what();
+  }
+  events.back().t_us = kMaxAbsTimestampUs;  // the limit itself is accepted
+  EXPECT_EQ(decode_bytes(write(events, w, true)).events.size(), 1000u);
+}
+
 TEST_F(Aedat4Files, NoEventStreamDeclaredMeansNoEvents) {
   Bytes b = write(synthetic_events(1000));
   ASSERT_TRUE(patch_text(b, ">EVTS<", ">IMUS<"));

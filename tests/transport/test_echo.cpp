@@ -4,8 +4,10 @@
 #include "evpipe/queue_stats_t.hpp"
 #include "evpipe/stage_stats_t.hpp"
 #include "evpipe/stats_t.hpp"
+#include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
 #include "evpipe_run.hpp"
+#include "lcm_log_bytes.hpp"
 #include "lcm_net.hpp"
 
 #include <fmt/format.h>
@@ -131,6 +133,63 @@ TEST(LcmEcho, AFileThatIsNotAnLcmLogIsAnErrorNamingIt) {
   const auto u = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --timeout 1 --url 'file://" + fifo.string() + "'", dir);
   EXPECT_EQ(u.status, 1);
   EXPECT_NE(u.err.find("is a FIFO, not a regular file"), std::string::npos) << u.err;
+  fs::remove_all(dir);
+}
+
+// Hostile-tester D2-D4: a corrupt or truncated log printed what liblcm could read and exited 0 (or crashed on a
+// data length of 0x7fffffff); a stats_t claiming 2^28 queues in 153 bytes took ~15 GB.
+TEST(LcmEcho, ACorruptOrTruncatedLogPrintsTheEventsBeforeThenFailsNamingTheOffset) {
+  using evpipe::testing::concat;
+  using evpipe::testing::lcm_event;
+  const fs::path dir = temp_dir("corrupt");
+  const auto good = lcm_event("EVPIPE_POSE", encode(pose_at(1000)), 0);
+  const auto next = lcm_event("EVPIPE_POSE", encode(pose_at(2000)), 1);
+  struct Case {
+    const char* name;
+    std::vector<std::uint8_t> bytes;
+    std::size_t offset;
+    std::size_t lines;
+    const char* reason;
+  };
+  const std::vector<Case> cases = {
+      {"cut", concat({good, std::vector<std::uint8_t>(next.begin(), next.end() - 1)}), good.size(), 1,
+       "truncated or corrupt: channel name and data are 11 + "},
+      {"huge_len", lcm_event("EVPIPE_POSE", encode(pose_at(1000)), 0, {}, 0x7fffffffU), 0, 0,
+       "truncated or corrupt: channel name and data are 11 + 2147483647 bytes"},
+      {"corrupt", concat({good, good, lcm_event("EVPIPE_POSE", {}, 2, {}, 0x80000100U)}), 2 * good.size(), 2,
+       "negative data length -2147483392"},
+  };
+  for (const Case& c : cases) {
+    const fs::path log = dir / (std::string(c.name) + ".lcmlog");
+    evpipe::testing::write_bytes(log, c.bytes);
+    const auto r = run(std::string(EVPIPE_LCM_ECHO_EXE) + " --log " + q(log.string()), dir);
+    EXPECT_EQ(r.status, 1) << c.name;
+    EXPECT_EQ(lines(r.out).size(), c.lines) << r.out;
+    EXPECT_EQ(r.err.rfind(fmt::format("evpipe-lcm-echo: {}: LCM log event at byte {}: ", log.string(), c.offset), 0),
+              0U)
+        << r.err;
+    EXPECT_NE(r.err.find(c.reason), std::string::npos) << r.err;
+    EXPECT_EQ(lines(r.err).size(), 1U) << r.err;
+  }
+  // A stats_t whose queue count cannot fit in its bytes: reported by field, not allocated.
+  StatsRecord s;
+  s.source = "replay";
+  auto stats = encode(s);
+  evpipe::testing::set_be32(stats, stats.size() - 8, 0x10000000U);  // num_queues
+  const fs::path log = dir / "stats.lcmlog";
+  evpipe::testing::write_bytes(log, concat({good, lcm_event("EVPIPE_STATS", stats, 1)}));
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  const std::string limit;  // the sanitizers reserve terabytes of address space
+#else
+  const std::string limit = "ulimit -v 2000000; ";  // 2 GB: a regression fails here rather than filling the machine
+#endif
+  const auto r = run(limit + std::string(EVPIPE_LCM_ECHO_EXE) + " --log " + q(log.string()), dir);
+  EXPECT_EQ(r.status, 0) << r.err;
+  const auto out = lines(r.out);
+  ASSERT_EQ(out.size(), 2U) << r.out;
+  EXPECT_EQ(
+      out[1].rfind(R"({"channel":"EVPIPE_STATS","type":null,"error":"stats_t.num_queues at byte 105 of 113: )", 0), 0U)
+      << out[1];
   fs::remove_all(dir);
 }
 

@@ -76,6 +76,12 @@ std::vector<std::string_view> split_chain(std::string_view spec) {
   if (std::any_of(names.begin(), names.end(), [](std::string_view n) { return n.empty(); })) {
     throw std::invalid_argument(fmt::format("filter chain '{}': empty filter name", spec));
   }
+  if (names.size() > kMaxChainFilters) {
+    throw std::invalid_argument(
+        fmt::format("filter chain '{}': {} filters, at most {} (each may hold up to {} MiB "
+                    "of per-pixel state)",
+                    spec, names.size(), kMaxChainFilters, kMaxFilterStateBytes >> 20));
+  }
   return names;
 }
 

@@ -614,8 +614,8 @@ class Aedat4Reader final : public FileReader {
     const auto width = static_cast<unsigned>(info_.geometry.width);
     const auto height = static_cast<unsigned>(info_.geometry.height);
     while (cursor_ < n) {
-      // Fast path: copy the run of in-order events inside the sensor, then tell the TimeOrder only the
-      // run's last timestamp (all of them would have been kept; its state ends the same).
+      // Fast path: copy the run of in-order events inside the sensor and the time limits, then tell the TimeOrder
+      // only the run's last timestamp (all of them would have been kept; its state ends the same).
       auto& out = pending_.events;
       const std::size_t base = out.size();
       const std::uint32_t run_end =
@@ -629,7 +629,10 @@ class Aedat4Reader final : public FileReader {
         const std::int64_t t = e.timestamp();
         const int x = e.x();
         const int y = e.y();
-        if (t < last || static_cast<unsigned>(x) >= width || static_cast<unsigned>(y) >= height) break;
+        if (t < last || !within_timestamp_limits(t) || static_cast<unsigned>(x) >= width ||
+            static_cast<unsigned>(y) >= height) {
+          break;
+        }
         last = t;
         *dst++ = Event{t, static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(y), e.polarity()};
       }

@@ -25,6 +25,11 @@ class TimeOrder {
       : options_(options), stats_(stats), file_(file) {}
 
   Verdict check(std::int64_t t_us, std::uint64_t offset) {
+    if (!within_timestamp_limits(t_us)) {
+      throw FormatError(
+          file_, offset,
+          "timestamp " + std::to_string(t_us) + " us is outside the supported range of +-2^61 us (a corrupt record)");
+    }
     if (!last_ || t_us >= *last_) {
       last_ = t_us;
       return Verdict::keep;

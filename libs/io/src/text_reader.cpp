@@ -272,6 +272,9 @@ class TextReader final : public FileReader {
     } else if (!parse_int(tokens[0], t)) {
       fail(offset, fmt::format("bad time '{}' (expected integer microseconds)", show(tokens[0])));
     }
+    if (!within_timestamp_limits(t)) {
+      fail(offset, fmt::format("time {} us is outside the supported range of +-2^61 us", t));
+    }
     std::int64_t x = 0;
     std::int64_t y = 0;
     if (!parse_int(tokens[1], x)) fail(offset, fmt::format("bad x '{}' (expected an integer)", show(tokens[1])));

@@ -7,12 +7,19 @@
 #include <exception>
 #include <iterator>
 #include <limits>
+#include <stdexcept>
+#include <string>
 #include <string_view>
 #include <type_traits>
+
+#include "wire_walker.hpp"
 
 namespace evpipe::transport {
 
 namespace {
+
+using detail::WireError;
+using detail::WireWalker;
 
 std::int32_t count_i32(std::size_t n, const char* field) {
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
@@ -123,14 +130,104 @@ std::vector<std::uint8_t> encode_msg(const Msg& m) {
   return out;
 }
 
+// The wire layout of pose_t and stats_t (lcmtypes/*.lcm in LCM's encoding: big-endian numbers, a string = an
+// int32 length counting its NUL, then the bytes), walked before the generated decode() runs: that code resizes an
+// array to the count it has just read before checking that the bytes are there, so a 153-byte stats_t claiming
+// 2^28 queues allocated ~15 GB. The walk allocates nothing and bounds every length and count by the bytes left.
+// The codec round trips (tests/transport) keep it in step with the .lcm files: a field added there and not here
+// makes every message of that type fail to decode.
+
+// pose_t.lcm, field by field (only strings vary in size).
+void walk(WireWalker& w, const evpipe::pose_t* /*type*/) {
+  w.fixed("utime", 8);
+  w.fixed("t_us", 8);
+  w.fixed("seq", 8);
+  w.string("camera_frame");
+  w.string("model_frame");
+  w.fixed("status", 1);
+  w.fixed("pose_valid", 1);
+  w.fixed("position_m", 3 * 8);
+  w.fixed("orientation", 4 * 8);
+  w.fixed("covariance_known", 1);
+  w.fixed("covariance", 36 * 8);
+  w.fixed("window_events", 4);
+  w.fixed("inliers", 4);
+  w.fixed("sigma_px", 8);
+  w.fixed("latency_us", 8);
+  w.fixed("source_connected", 1);
+  w.fixed("t_last_update_us", 8);
+}
+
+// stats_t.lcm with stage_stats_t.lcm and queue_stats_t.lcm. An element's smallest size is its fixed bytes plus 5
+// per string (length + NUL).
+constexpr std::size_t kStageFixedBytes = 5 * 8 + 3 * 8;
+constexpr std::size_t kQueueFixedBytes = 3 * 4 + 5 * 8;
+
+void walk(WireWalker& w, const evpipe::stats_t* /*type*/) {
+  w.fixed("utime", 8);
+  w.fixed("seq", 8);
+  w.fixed("interval_us", 8);
+  w.fixed("t_us", 8);
+  w.fixed("uptime_us", 8);
+  w.string("source");
+  w.fixed("source_connected", 1);
+  w.fixed("source_reconnects", 8);
+  w.fixed("status", 1);
+  w.fixed("poses_published", 8);
+  w.fixed("publish_failures", 8);
+  w.fixed("latency_p50_us", 8);
+  w.fixed("latency_p99_us", 8);
+  const std::int32_t stages = w.count("num_stages", 5 + kStageFixedBytes);
+  for (std::int32_t i = 0; i < stages; ++i) {
+    w.string("stages", i, ".name");
+    w.fixed("stages", kStageFixedBytes, i);
+  }
+  const std::int32_t queues = w.count("num_queues", 5 + kQueueFixedBytes);
+  for (std::int32_t i = 0; i < queues; ++i) {
+    w.string("queues", i, ".name");
+    w.fixed("queues", kQueueFixedBytes, i);
+  }
+  const std::int32_t figures = w.count("num_denoise_figures", 5 + 8);
+  for (std::int32_t i = 0; i < figures; ++i) {
+    w.string("denoise_figure_names", i);
+  }
+  w.fixed("denoise_figures", static_cast<std::size_t>(figures) * 8);
+}
+
+template <typename Msg>
+constexpr std::string_view kTypeName = std::is_same_v<Msg, evpipe::pose_t> ? "pose_t" : "stats_t";
+
+/// nullopt: `data` is a whole Msg, or carries another fingerprint. Else why it is not (type.field at byte N).
+template <typename Msg>
+std::optional<std::string> wire_error_of(const void* data, std::size_t size) {
+  if (data == nullptr) return std::nullopt;
+  WireWalker w(kTypeName<Msg>, data, size);
+  if (!w.fingerprint(Msg::getHash())) return std::nullopt;
+  try {
+    walk(w, static_cast<const Msg*>(nullptr));
+  } catch (const WireError& e) {
+    return std::string(e.what());
+  }
+  return std::nullopt;
+}
+
 template <typename Msg>
 std::optional<Msg> decode_msg(const void* data, std::size_t size) {
   if (data == nullptr || size < 8 || size > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
     return std::nullopt;
   }
+  WireWalker w(kTypeName<Msg>, data, size);
+  if (!w.fingerprint(Msg::getHash())) {
+    return std::nullopt;  // another type
+  }
+  try {
+    walk(w, static_cast<const Msg*>(nullptr));  // before decode() allocates anything
+  } catch (const WireError&) {
+    return std::nullopt;  // truncated, or a length / count beyond the bytes (wire_error() says which)
+  }
   Msg m;
-  // decode() checks the 8-byte fingerprint first and fails (< 0) on another type or truncated data. A message of
-  // the right type with a negative or absurd array length makes the generated code's resize() throw: not ours either.
+  // decode() checks the 8-byte fingerprint first and fails (< 0) on another type or truncated data; the walk above
+  // has refused negative or absurd array lengths already, the catch is a second line.
   try {
     if (m.decode(data, 0, static_cast<int>(size)) < 0) {
       return std::nullopt;
@@ -258,6 +355,13 @@ std::optional<StatsRecord> decode_stats(const void* data, std::size_t size) {
     return std::nullopt;
   }
   return from_lcm(*m);
+}
+
+std::optional<std::string> wire_error(const void* data, std::size_t size) {
+  if (auto why = wire_error_of<evpipe::pose_t>(data, size)) {
+    return why;
+  }
+  return wire_error_of<evpipe::stats_t>(data, size);
 }
 
 }  // namespace evpipe::transport

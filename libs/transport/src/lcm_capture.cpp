@@ -6,7 +6,13 @@
 #include <fmt/format.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 #include <string_view>
 #include <utility>
@@ -128,34 +134,99 @@ std::vector<StatsRecord> LcmCapture::stats(const std::string& channel) const {
   return out;
 }
 
-std::vector<ReceivedMessage> read_lcm_log(const std::filesystem::path& path) {
-  // A regular file (a FIFO would block LCM's fopen) that starts with an event's sync word: LCM's reader would
-  // otherwise scan any file for one and report no events.
-  std::string head;
+LcmLogError::LcmLogError(const std::string& what, std::uint64_t offset, std::vector<ReceivedMessage> before)
+    : std::runtime_error(what), offset_(offset), messages_(std::move(before)) {}
+
+namespace {
+
+// LCM's log format (lcm/eventlog.c): events back to back, each a 28-byte header (big-endian) then the channel
+// name and the data. Read here rather than with liblcm's lcm_eventlog_read_next_event, which trusts the lengths
+// (a data length of 0x7fffffff crashed in its fread), scans past garbage, and reports a bad event on stderr as the
+// end of the log.
+constexpr std::uint32_t kLogSync = 0xEDA1DA01;
+constexpr std::size_t kEventHeaderBytes = 4 + 8 + 8 + 4 + 4;  // sync, event number, timestamp, lengths
+constexpr std::int32_t kMaxChannelBytes = 1000;               // liblcm's reader refuses longer names too
+
+std::uint64_t big_endian(const unsigned char* p, std::size_t bytes) {
+  std::uint64_t v = 0;
+  for (std::size_t i = 0; i < bytes; ++i) v = (v << 8) | p[i];
+  return v;
+}
+
+}  // namespace
+
+void read_lcm_log(const std::filesystem::path& path, const std::function<void(ReceivedMessage&&)>& on_event) {
+  UniqueFile f;
+  std::uint64_t size = 0;
   try {
-    auto f = open_input_file(path.string());
-    head.resize(4);
-    head.resize(std::fread(head.data(), 1, head.size(), f.get()));
+    f = open_input_file(path.string());  // a regular file (a FIFO would block)
+    struct stat st {};
+    if (::fstat(::fileno(f.get()), &st) != 0) {
+      throw FileError(path.string(), fmt::format("cannot examine: {}", std::strerror(errno)));
+    }
+    size = static_cast<std::uint64_t>(st.st_size);
   } catch (const FileError& e) {
     throw std::runtime_error(fmt::format("{}: cannot open as an LCM log file: {}", path.string(), e.reason()));
   }
-  constexpr std::string_view kSync("\xED\xA1\xDA\x01", 4);  // LCM's event sync word, big-endian
-  if (!head.empty() && head != kSync) {
-    throw std::runtime_error(
-        fmt::format("{}: not an LCM log file (no LCM event sync word 0xEDA1DA01 at byte 0)", path.string()));
-  }
-  lcm::LogFile log(path.string(), "r");
-  if (!log.good()) {
-    throw std::runtime_error(fmt::format("{}: cannot open as an LCM log file", path.string()));
-  }
-  std::vector<ReceivedMessage> out;
-  while (const lcm::LogEvent* e = log.readNextEvent()) {
+  std::uint64_t offset = 0;  // of the event being read
+  const auto fail = [&](const std::string& why) {
+    throw LcmLogError(fmt::format("{}: LCM log event at byte {}: {}", path.string(), offset, why), offset);
+  };
+  const auto read_bytes = [&](void* buf, std::size_t n, std::string_view what) {
+    if (n != 0 && std::fread(buf, 1, n, f.get()) != n) {
+      fail(std::ferror(f.get()) != 0 ? fmt::format("cannot read its {}: {}", what, std::strerror(errno))
+                                     : fmt::format("the file ended in its {} (it shrank while being read)", what));
+    }
+  };
+  while (offset < size) {
+    const std::uint64_t left = size - offset;
+    std::array<unsigned char, kEventHeaderBytes> h{};
+    const std::size_t have = static_cast<std::size_t>(std::min<std::uint64_t>(left, h.size()));
+    read_bytes(h.data(), have, "header");
+    const std::size_t sync_bytes = std::min<std::size_t>(have, 4);
+    if (big_endian(h.data(), sync_bytes) != (kLogSync >> (8 * (4 - sync_bytes)))) {
+      if (offset == 0) {
+        throw LcmLogError(
+            fmt::format("{}: not an LCM log file (no LCM event sync word 0xEDA1DA01 at byte 0)", path.string()), 0);
+      }
+      fail(fmt::format("no event sync word 0xEDA1DA01 (found 0x{:0{}X}): the log is corrupt here",
+                       big_endian(h.data(), sync_bytes), 2 * sync_bytes));
+    }
+    if (have < h.size()) {
+      fail(fmt::format("truncated: the file ends {} bytes into the {}-byte event header", have, h.size()));
+    }
+    const auto channel_len = static_cast<std::int32_t>(static_cast<std::uint32_t>(big_endian(h.data() + 20, 4)));
+    const auto data_len = static_cast<std::int32_t>(static_cast<std::uint32_t>(big_endian(h.data() + 24, 4)));
+    if (channel_len <= 0 || channel_len >= kMaxChannelBytes) {
+      fail(fmt::format("channel name length {} (1 to {} bytes): the log is corrupt here", channel_len,
+                       kMaxChannelBytes - 1));
+    }
+    if (data_len < 0) {
+      fail(fmt::format("negative data length {}: the log is corrupt here", data_len));
+    }
+    const std::uint64_t body = static_cast<std::uint64_t>(channel_len) + static_cast<std::uint64_t>(data_len);
+    if (body > left - h.size()) {
+      fail(
+          fmt::format("truncated or corrupt: channel name and data are {} + {} bytes, the file has {} after the header",
+                      channel_len, data_len, left - h.size()));
+    }
     ReceivedMessage m;
-    m.channel = e->channel;
-    const auto* p = static_cast<const std::uint8_t*>(e->data);
-    m.data.assign(p, p + e->datalen);
-    m.recv_utime_us = e->timestamp;
-    out.push_back(std::move(m));
+    m.recv_utime_us = static_cast<std::int64_t>(big_endian(h.data() + 12, 8));
+    m.channel.resize(static_cast<std::size_t>(channel_len));
+    read_bytes(m.channel.data(), m.channel.size(), "channel name");
+    m.data.resize(static_cast<std::size_t>(data_len));
+    read_bytes(m.data.data(), m.data.size(), "data");
+    offset += h.size() + body;
+    on_event(std::move(m));
+  }
+}
+
+std::vector<ReceivedMessage> read_lcm_log(const std::filesystem::path& path) {
+  std::vector<ReceivedMessage> out;
+  try {
+    read_lcm_log(path, [&](ReceivedMessage&& m) { out.push_back(std::move(m)); });
+  } catch (const LcmLogError& e) {
+    throw LcmLogError(e.what(), e.offset(), std::move(out));
   }
   return out;
 }

@@ -10,8 +10,14 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include <cmath>
+#include <exception>
 #include <limits>
+#include <stdexcept>
+#include <string>
+#include <string_view>
 #include <utility>
+
+#include "wire_walker.hpp"
 
 namespace evpipe::transport {
 
@@ -49,7 +55,55 @@ void put_run(std::vector<std::uint8_t>& out, std::uint8_t code, std::size_t n) {
   } while (extra != 0);
 }
 
+// preview_t.lcm's wire layout (LCM's encoding: big-endian numbers, a string = an int32 length counting its NUL,
+// then the bytes), walked before the generated decode() runs: that code resizes `image` to image_bytes and the
+// segment arrays to num_segments before checking that the bytes are there (a 200-byte message claiming 2^31 - 1
+// image bytes had the viewer allocate 2 GB; a negative count, converted to a size, more). The walk allocates
+// nothing and bounds every count and length by the bytes left (wire_walker.hpp, as codec.cpp's pose_t / stats_t);
+// the preview round trips (tests/transport) keep it in step with preview_t.lcm: a field added there and not here
+// makes every preview fail to decode.
+// preview_t.lcm, field by field.
+void walk(detail::WireWalker& w) {
+  w.fixed("utime", 8);
+  w.fixed("seq", 8);
+  w.fixed("t_us", 8);
+  w.fixed("window_t0_us", 8);
+  w.fixed("window_t1_us", 8);
+  w.fixed("status", 1);
+  w.fixed("pose_valid", 1);
+  w.fixed("raw_events", 4);
+  w.fixed("kept_events", 4);
+  w.fixed("pose_events", 4);
+  w.fixed("inliers", 4);
+  w.fixed("sigma_px", 4);
+  w.fixed("latency_ms", 4);
+  w.fixed("latency_p99_ms", 4);
+  w.fixed("queue_drops", 8);
+  w.fixed("previews_dropped", 8);
+  w.fixed("width", 2);
+  w.fixed("height", 2);
+  w.fixed("bin", 1);
+  w.fixed("encoding", 1);
+  const std::int32_t image_bytes = w.count("image_bytes", 1);
+  w.fixed("image", static_cast<std::size_t>(image_bytes));
+  const std::int32_t segments = w.count("num_segments", 4 * 4);  // x0, y0, x1 and y1: a float each
+  for (const std::string_view field : {"x0", "y0", "x1", "y1"}) w.fixed(field, static_cast<std::size_t>(segments) * 4);
+  w.string("note");
+}
+
 }  // namespace
+
+std::optional<std::string> preview_wire_error(const void* data, std::size_t size) {
+  if (data == nullptr) return std::nullopt;
+  detail::WireWalker w("preview_t", data, size);
+  if (!w.fingerprint(evpipe::preview_t::getHash())) return std::nullopt;
+  try {
+    walk(w);
+  } catch (const detail::WireError& e) {
+    return std::string(e.what());
+  }
+  return std::nullopt;
+}
 
 EncodedImage encode_preview_image(const std::vector<std::uint8_t>& pixels) {
   EncodedImage rle{evpipe::preview_t::ENCODING_RLE, {}};
@@ -147,9 +201,23 @@ std::vector<std::uint8_t> encode(const PreviewRecord& r) {
 }
 
 std::optional<PreviewRecord> decode_preview(const void* data, std::size_t size) {
+  if (data == nullptr || size > static_cast<std::size_t>(std::numeric_limits<int>::max())) return std::nullopt;
+  {
+    detail::WireWalker w("preview_t", data, size);
+    if (!w.fingerprint(evpipe::preview_t::getHash())) return std::nullopt;  // another type, or fewer than 8 bytes
+    try {
+      walk(w);  // before decode() allocates anything
+    } catch (const detail::WireError&) {
+      return std::nullopt;  // truncated, or a count / length beyond the bytes (preview_wire_error() says which)
+    }
+  }
   evpipe::preview_t m;
-  if (size > static_cast<std::size_t>(std::numeric_limits<int>::max()) || m.decode(data, 0, static_cast<int>(size)) < 0)
+  // The walk has refused negative or absurd counts already; the catch is a second line.
+  try {
+    if (m.decode(data, 0, static_cast<int>(size)) < 0) return std::nullopt;
+  } catch (const std::exception&) {
     return std::nullopt;
+  }
   if (m.width <= 0 || m.height <= 0 || m.bin <= 0)
     throw DecodeError(fmt::format("preview_t: image size {}x{} bin {} (all must be > 0)", m.width, m.height, m.bin));
   // evpipe bins its previews to at most 100 000 pixels (view::kMaxPreviewPixels); a stray message claiming up to

@@ -89,6 +89,15 @@ inline void append_bounded(std::vector<Event>& held, EventSpan fresh, std::size_
   held.insert(held.end(), fresh.begin() + static_cast<std::ptrdiff_t>(drop > n_held ? drop - n_held : 0), fresh.end());
 }
 
+/// The timestamps evpipe accepts: |t_us| <= 2^61 us (73 000 years; recordings carry microseconds since 1970, ~2^51).
+/// The difference of any two then fits in int64 with room for every window, look-ahead and rate period added to
+/// them; readers refuse a record outside it as corrupt (a damaged packet or a mistyped text line near the int64
+/// limits made the filters' time steps overflow and spin).
+inline constexpr std::int64_t kMaxAbsTimestampUs = std::int64_t{1} << 61;
+[[nodiscard]] constexpr bool within_timestamp_limits(std::int64_t t_us) noexcept {
+  return t_us >= -kMaxAbsTimestampUs && t_us <= kMaxAbsTimestampUs;
+}
+
 /// The largest sensor evpipe accepts, per side (docs/operations.md, "Limits"). The largest event sensors made are
 /// 1280 x 720 (Prophesee IMX636) and 1280 x 960 (Samsung Gen4); 2048 x 2048 leaves 3.4x their pixel count as
 /// headroom while bounding every per-pixel array (denoise::kMaxFilterBytesPerPixel) to a few hundred MB. Readers,

@@ -55,6 +55,10 @@ struct ReportItem {
 inline constexpr std::size_t kMaxFilterBytesPerPixel = 256;
 inline constexpr std::size_t kMaxFilterStateBytes =
     kMaxFilterBytesPerPixel * static_cast<std::size_t>(kMaxSensorSide) * static_cast<std::size_t>(kMaxSensorSide);
+/// The most filters one chain may hold (`evdenoise --filter A,B,...`, `denoise.filter`): each holds its own per-pixel
+/// state (up to 250 MB each on the largest sensor with the filters there are), and 40 chained copies of one filter
+/// took 3.4 GB. The project's chains have two.
+inline constexpr std::size_t kMaxChainFilters = 8;
 /// Called by every filter before it allocates per-pixel state: throws std::invalid_argument naming `filter` when the
 /// sensor is beyond kMaxSensorSide or `bytes_per_pixel` x its pixels exceeds kMaxFilterStateBytes (issue 17: a
 /// declared 65536 x 65536 sensor made baf, ynoise and stcf abort on bad_alloc).

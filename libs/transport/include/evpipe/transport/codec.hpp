@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace evpipe::transport {
@@ -35,9 +36,16 @@ class DecodeError : public std::runtime_error {
 [[nodiscard]] std::vector<std::uint8_t> encode(const PoseRecord& r);
 [[nodiscard]] std::vector<std::uint8_t> encode(const StatsRecord& r);
 
-/// Bytes -> record. nullopt when the bytes are not this type (the LCM fingerprint differs) or are truncated;
-/// DecodeError when they are this type with invalid content.
+/// Bytes -> record. nullopt when the bytes are not this type (the LCM fingerprint differs) or are truncated, or a
+/// string length or array count goes beyond the bytes (checked before anything is allocated: a count that cannot
+/// fit is never allocated); DecodeError when they are this type with invalid content.
 [[nodiscard]] std::optional<PoseRecord> decode_pose(const void* data, std::size_t size);
 [[nodiscard]] std::optional<StatsRecord> decode_stats(const void* data, std::size_t size);
+
+/// Why bytes carrying the pose_t or stats_t fingerprint are not a whole message of that type (the cases where
+/// decode_pose / decode_stats return nullopt for them), naming the field and its byte offset, e.g.
+/// "stats_t.num_queues at byte 93 of 153: count 268435456 needs at least ... bytes". nullopt when the bytes are
+/// a whole message, or carry another fingerprint.
+[[nodiscard]] std::optional<std::string> wire_error(const void* data, std::size_t size);
 
 }  // namespace evpipe::transport

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -65,9 +66,30 @@ class LcmCapture {
   bool keep_{true};
 };
 
-/// Every event of an LCM log file (lcm-logger, file://...?mode=w), in order (an empty file has none). Throws
-/// std::runtime_error naming the file when it cannot be opened, is not a regular file, or does not start with an
-/// LCM event.
+/// A log file whose content is not a sequence of whole LCM events: a bad sync word, a length beyond the end of
+/// the file, a truncated event. what() = "<path>: LCM log event at byte <offset>: <reason>" (or, at byte 0,
+/// "<path>: not an LCM log file (...)").
+class LcmLogError : public std::runtime_error {
+ public:
+  LcmLogError(const std::string& what, std::uint64_t offset, std::vector<ReceivedMessage> before = {});
+  /// Byte offset of the event that could not be read.
+  [[nodiscard]] std::uint64_t offset() const noexcept { return offset_; }
+  /// The events read before it (read_lcm_log(path) only: the callback form has delivered them already).
+  [[nodiscard]] const std::vector<ReceivedMessage>& messages() const noexcept { return messages_; }
+
+ private:
+  std::uint64_t offset_;
+  std::vector<ReceivedMessage> messages_;
+};
+
+/// Every event of an LCM log file (lcm-logger, file://...?mode=w), in order (an empty file has none), passed to
+/// `on_event` as it is read. Every length is checked against the bytes left in the file before anything is
+/// allocated or read. Throws std::runtime_error naming the file when it cannot be opened or is not a regular file,
+/// and LcmLogError (file and byte offset) at the first event that is not whole; the events before it have been
+/// passed to `on_event`.
+void read_lcm_log(const std::filesystem::path& path, const std::function<void(ReceivedMessage&&)>& on_event);
+
+/// The same, collected. On LcmLogError, its messages() holds the events read before the bad one.
 [[nodiscard]] std::vector<ReceivedMessage> read_lcm_log(const std::filesystem::path& path);
 
 }  // namespace evpipe::transport

@@ -78,9 +78,15 @@ struct EncodedImage {
                                                              std::size_t size, std::size_t count);
 
 [[nodiscard]] std::vector<std::uint8_t> encode(const PreviewRecord& r);
-/// nullopt when the bytes are not a preview_t (fingerprint) or truncated; DecodeError for invalid content
-/// (sizes, image that does not decode to width * height pixels, segment arrays).
+/// nullopt when the bytes are not a preview_t (fingerprint) or truncated, or a count (image_bytes, num_segments) or
+/// the note's length goes beyond the bytes (checked before anything is allocated: a count that cannot fit is never
+/// allocated); DecodeError for invalid content (sizes, image that does not decode to width * height pixels,
+/// segment coordinates).
 [[nodiscard]] std::optional<PreviewRecord> decode_preview(const void* data, std::size_t size);
+/// Why bytes carrying the preview_t fingerprint are not a whole preview_t (the cases where decode_preview returns
+/// nullopt for them), naming the field and its byte offset, e.g. "preview_t.image_bytes at byte 100 of 200: count
+/// 268435456 needs at least ... bytes". nullopt when the bytes are a whole preview_t, or carry another fingerprint.
+[[nodiscard]] std::optional<std::string> preview_wire_error(const void* data, std::size_t size);
 
 struct PreviewPublisherCounters {
   std::int64_t published{0};
