@@ -3,7 +3,8 @@
 # files written by evpipe's own writers, hand-built AEDAT 2.0 files, and small crops of the third-party
 # recordings when ../shared/data/real is present (crops are made here, at fuzz time, and never committed);
 # and of the run-configuration fuzzer into OUT_DIR/config/: the shipped YAML files of config/ (evpipe.yaml, every
-# key with its default, and the camera/model/prior files for more YAML shapes) and one config per section.
+# key with its default, and the camera/model/prior files for more YAML shapes) and one config per section; and of the
+# LCM fuzzer into OUT_DIR/lcm/: evpipe's pose_t, stats_t and preview_t messages alone and as a log.
 #
 # Usage: tools/make_fuzz_corpus.sh BUILD_DIR OUT_DIR
 #   BUILD_DIR: a build with the evpipe_fuzz_seeds target (configured with -DEVPIPE_FUZZ=ON)

@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (clang, ASan+UBSan+libFuzzer) and runs each reader fuzzer and the run-config
-# parser's fuzzer (fuzz_config) for SECONDS (default 30) each. Exits non-zero if any fuzzer finds a crash, leak, timeout, OOM, UB or a broken reader
+# Builds the libFuzzer targets (clang, ASan+UBSan+libFuzzer) and runs each reader fuzzer (fuzz_lcm: the LCM log and
+# messages) and the run-config parser's fuzzer (fuzz_config) for SECONDS (default 30) each. Exits non-zero if any fuzzer finds a crash, leak, timeout, OOM, UB or a broken reader
 # invariant; the reproducer is saved under $BUILD/fuzz/artifacts/.
 #
 # Usage: tools/run_fuzzers.sh [SECONDS]
 #   EVPIPE_FUZZ_BUILD_DIR  build directory (default: <repo>/build/fuzz, the "fuzz" CMake preset)
-#   EVPIPE_FUZZERS         subset to run, e.g. "fuzz_text fuzz_config" (default: all five)
+#   EVPIPE_FUZZERS         subset to run, e.g. "fuzz_text fuzz_config" (default: all six)
 #   EVPIPE_JOBS            parallel build jobs (default 2)
 #   EVPIPE_FUZZ_PARALLEL   fuzzers run at once (default: the number of cores)
 # Reproduce a finding: $BUILD/tests/fuzz/fuzz_<fmt> <artifact file>
@@ -14,7 +14,7 @@ set -euo pipefail
 seconds=${1:-30}
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${EVPIPE_FUZZ_BUILD_DIR:-$root/build/fuzz}
-fuzzers=${EVPIPE_FUZZERS:-"fuzz_aedat2 fuzz_aedat31 fuzz_aedat4 fuzz_text fuzz_config"}
+fuzzers=${EVPIPE_FUZZERS:-"fuzz_aedat2 fuzz_aedat31 fuzz_aedat4 fuzz_text fuzz_config fuzz_lcm"}
 jobs=${EVPIPE_JOBS:-2}
 
 for tool in clang clang++; do

@@ -1,9 +1,10 @@
 // Writes seed corpora for the reader fuzzers: small valid files made by evpipe's own writers (AEDAT 4.0,
 // AEDAT 3.1, text), hand-built AEDAT 2.0 files, and, when the third-party recordings are available,
-// small crops of their starts (generated at fuzz time into the build directory, never into the repo).
+// small crops of their starts (generated at fuzz time into the build directory, never into the repo); for the
+// LCM fuzzer, evpipe's pose_t, stats_t and preview_t messages, alone and as a log.
 //
 //   evpipe_fuzz_seeds OUT_DIR [REAL_DATA_DIR]
-//   -> OUT_DIR/{aedat2,aedat31,aedat4,text}/<seed files>
+//   -> OUT_DIR/{aedat2,aedat31,aedat4,text,lcm}/<seed files>
 
 #include <cstdint>
 #include <cstdio>
@@ -15,6 +16,8 @@
 #include <vector>
 
 #include "evpipe/io/writer.hpp"
+#include "evpipe/transport/codec.hpp"
+#include "evpipe/transport/preview.hpp"
 
 namespace fs = std::filesystem;
 using evpipe::Event;
@@ -52,6 +55,20 @@ void put_be32(std::string& out, std::uint32_t v) {
 void save(const fs::path& path, const std::string& bytes) {
   std::ofstream f(path, std::ios::binary);
   f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+// One event of an LCM log (lcm-logger's format: sync word, event number, time, channel length, data length,
+// channel, data; big-endian).
+std::string lcm_event(std::uint64_t number, const std::string& channel, const std::vector<std::uint8_t>& data) {
+  std::string out;
+  put_be32(out, 0xEDA1DA01u);
+  for (const std::uint64_t v : {number, std::uint64_t{1'700'000'000'000'000} + number}) {
+    put_be32(out, static_cast<std::uint32_t>(v >> 32));
+    put_be32(out, static_cast<std::uint32_t>(v));
+  }
+  put_be32(out, static_cast<std::uint32_t>(channel.size()));
+  put_be32(out, static_cast<std::uint32_t>(data.size()));
+  return out + channel + std::string(data.begin(), data.end());
 }
 
 std::string load(const fs::path& path, std::size_t max_bytes) {
@@ -108,7 +125,7 @@ int main(int argc, char** argv) {
   }
   try {
     const fs::path out = argv[1];
-    for (const char* sub : {"aedat2", "aedat31", "aedat4", "text"}) fs::create_directories(out / sub);
+    for (const char* sub : {"aedat2", "aedat31", "aedat4", "text", "lcm"}) fs::create_directories(out / sub);
     using evpipe::io::Format;
     evpipe::io::WriterOptions o;
     o.packet_events = 16;
@@ -154,6 +171,28 @@ int main(int argc, char** argv) {
          aedat2_file("eu.seebetter.ini.chips.davis.Davis346red", "\n", true, true));
     save(out / "aedat2" / "unknown-chip.aedat",
          aedat2_file("ch.unizh.ini.jaer.chip.retina.DVS128", "\r\n", false, false));
+
+    // LCM: a pose, a statistics message and a preview, each alone and the three as a log.
+    evpipe::transport::PoseRecord pose;
+    pose.status = evpipe::transport::TrackingStatus::tracking;
+    pose.pose_valid = true;
+    evpipe::transport::StatsRecord stats;
+    stats.queues.resize(2);
+    evpipe::transport::PreviewRecord preview;
+    preview.width = 8;
+    preview.height = 6;
+    preview.pixels.assign(48, 0);
+    preview.pixels[9] = 1;
+    preview.segments.resize(2);
+    const std::vector<std::vector<std::uint8_t>> messages = {
+        evpipe::transport::encode(pose), evpipe::transport::encode(stats), evpipe::transport::encode(preview)};
+    const char* channels[] = {"EVPIPE_POSE", "EVPIPE_STATS", "EVPIPE_PREVIEW"};
+    std::string log;
+    for (std::size_t i = 0; i < messages.size(); ++i) {
+      save(out / "lcm" / (std::string(channels[i]) + ".msg"), std::string(messages[i].begin(), messages[i].end()));
+      log += lcm_event(i, channels[i], messages[i]);
+    }
+    save(out / "lcm" / "three.lcmlog", log);
 
     // Crops of the real recordings, when present.
     if (argc >= 3 && fs::is_directory(argv[2])) {
