@@ -18,7 +18,6 @@ namespace evpipe::transport {
 
 namespace {
 
-using detail::WireError;
 using detail::WireWalker;
 
 std::int32_t count_i32(std::size_t n, const char* field) {
@@ -200,15 +199,8 @@ constexpr std::string_view kTypeName = std::is_same_v<Msg, evpipe::pose_t> ? "po
 /// nullopt: `data` is a whole Msg, or carries another fingerprint. Else why it is not (type.field at byte N).
 template <typename Msg>
 std::optional<std::string> wire_error_of(const void* data, std::size_t size) {
-  if (data == nullptr) return std::nullopt;
-  WireWalker w(kTypeName<Msg>, data, size);
-  if (!w.fingerprint(Msg::getHash())) return std::nullopt;
-  try {
-    walk(w, static_cast<const Msg*>(nullptr));
-  } catch (const WireError& e) {
-    return std::string(e.what());
-  }
-  return std::nullopt;
+  return detail::walk_error(kTypeName<Msg>, Msg::getHash(), data, size,
+                            [](WireWalker& w) { walk(w, static_cast<const Msg*>(nullptr)); });
 }
 
 template <typename Msg>
@@ -216,14 +208,8 @@ std::optional<Msg> decode_msg(const void* data, std::size_t size) {
   if (data == nullptr || size < 8 || size > static_cast<std::size_t>(std::numeric_limits<int>::max())) {
     return std::nullopt;
   }
-  WireWalker w(kTypeName<Msg>, data, size);
-  if (!w.fingerprint(Msg::getHash())) {
-    return std::nullopt;  // another type
-  }
-  try {
-    walk(w, static_cast<const Msg*>(nullptr));  // before decode() allocates anything
-  } catch (const WireError&) {
-    return std::nullopt;  // truncated, or a length / count beyond the bytes (wire_error() says which)
+  if (wire_error_of<Msg>(data, size)) {
+    return std::nullopt;  // truncated, or a length / count beyond the bytes: walked before decode() allocates
   }
   Msg m;
   // decode() checks the 8-byte fingerprint first and fails (< 0) on another type or truncated data; the walk above

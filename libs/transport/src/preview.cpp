@@ -94,15 +94,8 @@ void walk(detail::WireWalker& w) {
 }  // namespace
 
 std::optional<std::string> preview_wire_error(const void* data, std::size_t size) {
-  if (data == nullptr) return std::nullopt;
-  detail::WireWalker w("preview_t", data, size);
-  if (!w.fingerprint(evpipe::preview_t::getHash())) return std::nullopt;
-  try {
-    walk(w);
-  } catch (const detail::WireError& e) {
-    return std::string(e.what());
-  }
-  return std::nullopt;
+  return detail::walk_error("preview_t", evpipe::preview_t::getHash(), data, size,
+                            [](detail::WireWalker& w) { walk(w); });
 }
 
 EncodedImage encode_preview_image(const std::vector<std::uint8_t>& pixels) {
@@ -202,15 +195,8 @@ std::vector<std::uint8_t> encode(const PreviewRecord& r) {
 
 std::optional<PreviewRecord> decode_preview(const void* data, std::size_t size) {
   if (data == nullptr || size > static_cast<std::size_t>(std::numeric_limits<int>::max())) return std::nullopt;
-  {
-    detail::WireWalker w("preview_t", data, size);
-    if (!w.fingerprint(evpipe::preview_t::getHash())) return std::nullopt;  // another type, or fewer than 8 bytes
-    try {
-      walk(w);  // before decode() allocates anything
-    } catch (const detail::WireError&) {
-      return std::nullopt;  // truncated, or a count / length beyond the bytes (preview_wire_error() says which)
-    }
-  }
+  // Truncated, or a count / length beyond the bytes: walked before decode() allocates.
+  if (preview_wire_error(data, size)) return std::nullopt;
   evpipe::preview_t m;
   // The walk has refused negative or absurd counts already; the catch is a second line.
   try {

@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -99,5 +100,21 @@ class WireWalker {
   std::size_t size_;
   std::size_t pos_{0};
 };
+
+/// Why bytes carrying fingerprint `hash` are not a whole `type` message, as `walk(WireWalker&)` lays it out; nullopt
+/// when they are whole, or carry another fingerprint (or fewer than 8 bytes).
+template <typename Walk>
+std::optional<std::string> walk_error(std::string_view type, std::int64_t hash, const void* data, std::size_t size,
+                                      Walk&& walk) {
+  if (data == nullptr) return std::nullopt;
+  WireWalker w(type, data, size);
+  if (!w.fingerprint(hash)) return std::nullopt;
+  try {
+    walk(w);
+  } catch (const WireError& e) {
+    return std::string(e.what());
+  }
+  return std::nullopt;
+}
 
 }  // namespace evpipe::transport::detail
