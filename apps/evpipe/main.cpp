@@ -151,7 +151,10 @@ evpipe::stages::PoseProcessorOptions pose_options(const evpipe::config::RunConfi
   o.estimator.filter.enabled = cfg.pose.fuse_windows;
   o.estimator.track.verification.leave_one_out = cfg.pose.require_redundancy;
   o.estimator.init.verification.leave_one_out = cfg.pose.require_redundancy;
-  o.estimator.init.direct_alignment = cfg.pose.direct_alignment;
+  const std::string& da = cfg.pose.direct_alignment;
+  o.estimator.init.direct_alignment = da == "auto"                 ? evpipe::pose::DirectAlignment::automatic
+                                      : da == "on" || da == "true" ? evpipe::pose::DirectAlignment::on
+                                                                   : evpipe::pose::DirectAlignment::off;
   o.estimator.filter.max_acceleration_m_s2 = cfg.pose.max_acceleration_m_s2;
   o.estimator.filter.max_angular_acceleration_deg_s2 = cfg.pose.max_angular_acceleration_deg_s2;
   o.estimator.track.window_us = cfg.window.length_us;  // the windows the pipeline cuts (and catch-up slices)

@@ -144,8 +144,10 @@ TEST(RunConfig, LcmPipelineAndPoseSections) {
   EXPECT_EQ(c.pose.init_worker_nice, 3);
   EXPECT_TRUE(c.pose.require_redundancy);
   EXPECT_FALSE(parse_config("").pose.require_redundancy);
-  EXPECT_TRUE(c.pose.direct_alignment);
-  EXPECT_FALSE(parse_config("").pose.direct_alignment);
+  EXPECT_EQ(c.pose.direct_alignment, "true");
+  EXPECT_EQ(parse_config("").pose.direct_alignment, "auto");
+  EXPECT_EQ(parse_config("pose: {direct_alignment: off}").pose.direct_alignment, "off");
+  EXPECT_NE(error_of("pose: {direct_alignment: sometimes}").find("pose.direct_alignment"), std::string::npos);
   EXPECT_EQ(parse_config(c.to_yaml()).to_yaml(), c.to_yaml());
   EXPECT_NE(error_of("lcm: {stats_period_ms: 5000}").find("lcm.stats_period_ms: must be in [10, 1000]"),
             std::string::npos);

@@ -1,11 +1,13 @@
-// The hold's pose bound (standstill.hpp, pose_change_per_px): what one pixel of motion across the held model's edges
-// can stand for in the pose.
+// The standstill monitor (standstill.hpp): the hold's pose bound (pose_change_per_px, what one pixel of motion across
+// the held model's edges can stand for in the pose) and the background rate.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <numbers>
 #include <random>
+#include <vector>
 
 #include "evpipe/camera/camera_model.hpp"
 #include "evpipe/camera/line_model.hpp"
@@ -68,4 +70,50 @@ TEST(StandstillMonitor, PoseChangePerPixelBoundsEveryPoseChange) {
     EXPECT_LE(tightest_trans, 1.05);
   }
   EXPECT_GT(per_px_deg[0], 3.0 * per_px_deg[1]);
+}
+
+// The background rate (StandstillEvidence::background_rate_hz) is the Poisson noise's alone: on uniform noise it is the
+// `far` rate, and a line of clutter in the background band (a monitor's border beside a board) raises the `far` rate
+// many times but leaves it near the true rate (its cells are significantly above the others).
+TEST(StandstillMonitor, BackgroundRateLeavesStructuredActivityOut) {
+  const auto cfg = evpipe::testing::source_dir() / "config";
+  const camera::CameraModel camera = camera::load_camera((cfg / "davis346.yaml").string());
+  const camera::LineModel model = camera::load_line_model((cfg / "target-planar.yaml").string());
+  const camera::Pose T = sim::facing_pose(model, 1.5);
+  const pose::UndistortMap map(camera);
+  constexpr double kRateHz = 2.0;
+  constexpr std::int64_t kWindowUs = 30'000;
+  std::mt19937_64 rng(11);
+  std::uniform_int_distribution<int> ux(0, camera.width - 1), uy(0, camera.height - 1);
+  std::uniform_int_distribution<std::int64_t> ut(0, kWindowUs - 1);
+  std::vector<Event> noise;
+  const auto n_noise = static_cast<std::size_t>(kRateHz * camera.width * camera.height * 1e-6 * kWindowUs);
+  for (std::size_t i = 0; i < n_noise; ++i) {
+    noise.push_back(Event{ut(rng), static_cast<std::uint16_t>(ux(rng)), static_cast<std::uint16_t>(uy(rng)), true});
+  }
+  // The clutter: a vertical line 25-30 px right of the model's right edge, 20 events per pixel along it.
+  const auto segs = pose::project_model(camera, model, T);
+  double right = 0.0;
+  for (const auto& s : segs) right = std::max({right, s.segment_px.a_px.x(), s.segment_px.b_px.x()});
+  std::vector<Event> cluttered = noise;
+  const int x_clutter = static_cast<int>(right) + 27;
+  for (int y = camera.height / 4; y < 3 * camera.height / 4; ++y) {
+    for (int k = 0; k < 20; ++k) {
+      cluttered.push_back(Event{ut(rng), static_cast<std::uint16_t>(x_clutter), static_cast<std::uint16_t>(y), true});
+    }
+  }
+  for (auto* events : {&noise, &cluttered}) {
+    std::sort(events->begin(), events->end(), [](const Event& a, const Event& b) { return a.t_us < b.t_us; });
+  }
+  pose::StandstillMonitor m;
+  ASSERT_TRUE(m.start(camera, map, model, T, pose::StandstillOptions{}));
+  const pose::StandstillEvidence plain = m.observe(noise, kWindowUs, 0, kWindowUs);
+  ASSERT_TRUE(m.start(camera, map, model, T, pose::StandstillOptions{}));
+  const pose::StandstillEvidence clutter = m.observe(cluttered, kWindowUs, 0, kWindowUs);
+  std::cout << "far rate " << plain.noise_rate_hz << " / " << clutter.noise_rate_hz << " Hz, background "
+            << plain.background_rate_hz << " / " << clutter.background_rate_hz << " Hz (true " << kRateHz << ")\n";
+  EXPECT_NEAR(plain.background_rate_hz, kRateHz, 0.3 * kRateHz);
+  EXPECT_NEAR(plain.background_rate_hz, plain.noise_rate_hz, 0.1 * kRateHz);
+  EXPECT_GT(clutter.noise_rate_hz, 3.0 * kRateHz);
+  EXPECT_NEAR(clutter.background_rate_hz, kRateHz, 0.3 * kRateHz);
 }

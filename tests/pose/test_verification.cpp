@@ -8,6 +8,7 @@
 #include <numbers>
 #include <optional>
 #include <random>
+#include <string>
 
 #include "evbench_board.hpp"
 #include "evpipe/camera/trajectory.hpp"
@@ -217,11 +218,14 @@ using pose_test::board_error;
 class RealBoard : public ::testing::TestWithParam<const char*> {};
 
 // Under the sanitizers (Debug, ~20x slower: minutes per sequence) the first windows with the prior cover the code
-// paths; the optimised builds check both sequences whole, with and without the prior.
+// paths, and the board's direct alignment (DirectAlignment::automatic: 1-2 s per attempt optimised) searches a grid
+// 100x coarser; the optimised builds check both sequences whole with the default options, with and without the prior.
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 constexpr bool kWholeSequences = false;
+constexpr double kAlignmentReads = 2e6;
 #else
 constexpr bool kWholeSequences = true;
+constexpr double kAlignmentReads = pose::PriorAlignmentOptions{}.max_level0_reads;
 #endif
 
 TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
@@ -236,7 +240,9 @@ TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
     SCOPED_TRACE(with_prior ? "with the prior" : "without a prior");
     std::optional<camera::PosePrior> prior;
     if (with_prior) prior = camera::load_prior(dir + "/prior.yaml");
-    pose::PoseEstimator est(cam, model, prior);
+    pose::EstimatorOptions eo;
+    eo.init.alignment.max_level0_reads = kAlignmentReads;
+    pose::PoseEstimator est(cam, model, prior, eo);
     int tracking = 0, wrong = 0, good = 0, windows = 0;
     for (std::int64_t t0 = batch.events.front().t_us; t0 + 30'000 <= batch.events.back().t_us; t0 += 30'000) {
       if (!kWholeSequences && t0 - batch.events.front().t_us >= 8 * 30'000) break;
@@ -254,6 +260,12 @@ TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
     std::cout << GetParam() << (with_prior ? " with prior: " : " without prior: ") << tracking << " of " << windows
               << " windows tracking, " << good << " within 10 mm / 1 deg, " << wrong << " wrong\n";
     EXPECT_EQ(wrong, 0);
+    // The pan + tilt sequence is tracked from the prior (issue 21; measured 20 of 26 windows within 10 mm / 1 deg
+    // on its raw events): the board's direct alignment starts it, and its 7 000-event windows are tracked alone
+    // (before the background rate left the monitor's border out, as 100 ms histories: 2-4 windows per start).
+    if (kWholeSequences && with_prior && std::string(GetParam()) == "seq_0003") {
+      EXPECT_GE(good, windows / 2);
+    }
   }
 }
 INSTANTIATE_TEST_SUITE_P(Sequences, RealBoard, ::testing::Values("seq_0001", "seq_0003"));

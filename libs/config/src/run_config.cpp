@@ -155,7 +155,8 @@ const std::vector<Key>& keys() {
                         "nice increments are 0-19"));
     t.push_back(bool_key("pose.fuse_windows", &R::pose, &PoseFilesConfig::fuse_windows));
     t.push_back(bool_key("pose.require_redundancy", &R::pose, &PoseFilesConfig::require_redundancy));
-    t.push_back(bool_key("pose.direct_alignment", &R::pose, &PoseFilesConfig::direct_alignment));
+    t.push_back(str_key("pose.direct_alignment", &R::pose, &PoseFilesConfig::direct_alignment, true, 8,
+                        {"auto", "on", "off", "true", "false"}));
     t.push_back(
         real_key("pose.max_acceleration_m_s2", &R::pose, &PoseFilesConfig::max_acceleration_m_s2, 0.001, 1000.0));
     t.push_back(real_key("pose.max_angular_acceleration_deg_s2", &R::pose,

@@ -46,10 +46,10 @@ void EstimatorOptions::validate() const {
         fmt::format("pose.track_max_blur_px must be > 0 and track_max_span_us / track_history_max_us / "
                     "unverified_max_us >= 0, got {} / {} / {} / {}",
                     track_max_blur_px, track_max_span_us, track_history_max_us, unverified_max_us));
-  if (confirm_windows < 0 || confirm_windows_without_prior < 0)
-    throw std::invalid_argument(
-        fmt::format("pose.confirm_windows / confirm_windows_without_prior: must be >= 0, got {} / {}", confirm_windows,
-                    confirm_windows_without_prior));
+  if (confirm_windows < 0 || confirm_windows_without_prior < 0 || confirm_windows_direct < 0)
+    throw std::invalid_argument(fmt::format(
+        "pose.confirm_windows / confirm_windows_without_prior / confirm_windows_direct: must be >= 0, got {} / {} / {}",
+        confirm_windows, confirm_windows_without_prior, confirm_windows_direct));
   if (!(hold_entry_max_motion_px >= 0.0) || hold_contradicted_windows < 1)
     throw std::invalid_argument(
         fmt::format("pose hold: hold_entry_max_motion_px must be >= 0 and hold_contradicted_windows >= 1, got {} / {}",
@@ -228,6 +228,7 @@ InitOutcome PoseEstimator::run_initialisation(const InitJob& job) const {
     out.note = "initialisation: " + init.message;
     return out;
   }
+  out.direct = init.direct;
   // Polish the initial pose with the tracker so the first published pose carries a robust scale and a covariance
   // like every later one, and is measured on the events a tracking update at job.t_us uses: a pose found on the
   // accumulated events is polished on them first (the nearer start), then on the fresh ones (tracking_events: the
@@ -285,6 +286,7 @@ PoseEstimate PoseEstimator::apply_initialisation(const InitOutcome& outcome, Pos
   const bool without_prior = !prior_;
   track_.confirm_needed = without_prior ? std::max(options_.confirm_windows, options_.confirm_windows_without_prior)
                                         : options_.confirm_windows;
+  if (outcome.direct) track_.confirm_needed = std::max(track_.confirm_needed, options_.confirm_windows_direct);
   track_.confirm_min_coverage = without_prior ? options_.confirm_min_coverage_without_prior : 0.0;
   track_.confirmed = track_.healthy_in_a_row >= track_.confirm_needed && track_.confirm_min_coverage <= 0.0;
   unconfirmed(out);
@@ -714,7 +716,7 @@ bool PoseEstimator::signal_near(EventSpan events, const camera::Pose& T_cam_mode
   if (!events.empty()) exposure_us = std::max(exposure_us, events.back().t_us - events.front().t_us + 1);
   const StandstillEvidence ev =
       probe_.observe(events, exposure_us, std::numeric_limits<std::int64_t>::min(), exposure_us);
-  noise_rate_hz_ = ev.noise_rate_hz;
+  noise_rate_hz_ = ev.background_rate_hz;
   // Significant, and enough of it for the tracker's own minimum: the inliers of a fit (within ~4.7 sigma of the
   // edges, inside the near band at sigma < 0.7 px) are then mostly the target's events, not the noise's.
   return ev.signal &&
@@ -789,7 +791,7 @@ PoseEstimate PoseEstimator::hold_step(EventSpan window, std::int64_t t_end_us, E
   const std::int64_t fresh_us = std::clamp<std::int64_t>(t_end_us - hold_previous_t_us_, 0, window_us);
   hold_previous_t_us_ = t_end_us;
   const StandstillEvidence ev = observe_hold(window, window_us, false, fresh_us);
-  noise_rate_hz_ = ev.noise_rate_hz;
+  noise_rate_hz_ = ev.background_rate_hz;
   if (!ev.moving) {
     hold_unmeasured_since_us_.reset();
     track_.unhealthy_in_a_row = 0;  // "in a row": a window without motion ends a run of unmeasurable ones

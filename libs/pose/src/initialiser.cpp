@@ -683,8 +683,20 @@ InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& ca
 
 InitResult initialise_pose(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
                            const std::optional<camera::PosePrior>& prior, const InitialiserOptions& options) {
+  if (prior && !events.empty() && options.direct_alignment == DirectAlignment::automatic &&
+      crowded_length_share(camera, model, prior->pose, options.consistency_px) > 0.5) {
+    // Most of the model's lines lie closer together than the correspondences resolve: a detected line matches two
+    // model lines, and a fine grid's poses alias (scaled and tilted, the model's lines on other grid lines: a board
+    // 55 px wide was tracked 180 mm / 29 deg off). The direct alignment alone, with its runner-up test.
+    InitResult direct = initialise_by_alignment(events, camera, model, *prior, options);
+    if (!direct.ok)
+      direct.message = "direct alignment (a model finer than the line search resolves): " + direct.message;
+    return direct;
+  }
   InitResult lines = initialise_from_lines(events, camera, model, prior, options);
-  if (!prior || !options.direct_alignment || events.empty() || (lines.ok && lines.verified)) return lines;
+  if (!prior || options.direct_alignment != DirectAlignment::on || events.empty() || (lines.ok && lines.verified)) {
+    return lines;
+  }
   InitResult direct = initialise_by_alignment(events, camera, model, *prior, options);
   if (direct.ok) {
     direct.lines_detected = lines.lines_detected;

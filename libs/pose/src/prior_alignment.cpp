@@ -158,6 +158,74 @@ class Occupancy {
   std::size_t pixels_{0};
 };
 
+}  // namespace
+
+namespace {
+
+// Per projected segment in front of the camera (pinhole, undistorted pixels): its length and the image distance to
+// the nearest other segment parallel to it (within 5 deg) and beside it (infinity when none).
+struct Neighbour {
+  double length_px{0.0};
+  double nearest_px{std::numeric_limits<double>::infinity()};
+};
+
+std::vector<Neighbour> parallel_neighbours(const camera::CameraModel& camera, const camera::LineModel& model,
+                                           const camera::Pose& T_cam_model) {
+  struct S2 {
+    Vector2d a, b;
+  };
+  const auto pinhole = [&](const Vector3d& p) {
+    return Vector2d(camera.fx * p.x() / p.z() + camera.cx, camera.fy * p.y() / p.z() + camera.cy);
+  };
+  std::vector<S2> segs;
+  for (const auto& s : model.segments_m) {
+    const Vector3d A = T_cam_model.apply(s.a_m), B = T_cam_model.apply(s.b_m);
+    if (A.z() < kNear_m || B.z() < kNear_m) continue;
+    segs.push_back({pinhole(A), pinhole(B)});
+  }
+  std::vector<Neighbour> out(segs.size());
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    const Vector2d d = segs[i].b - segs[i].a;
+    const double len = d.norm();
+    if (!std::isfinite(len)) continue;
+    out[i].length_px = len;
+    if (!(len > 1.0)) continue;
+    const Vector2d u = d / len;
+    for (std::size_t j = 0; j < segs.size(); ++j) {
+      if (j == i) continue;
+      const Vector2d e = segs[j].b - segs[j].a;
+      if (!(e.norm() > 1.0) || std::abs(u.x() * e.y() - u.y() * e.x()) / e.norm() > std::sin(rad(5.0))) continue;
+      const Vector2d m = 0.5 * (segs[j].a + segs[j].b) - segs[i].a;
+      const double t = m.dot(u);
+      if (t < 0.0 || t > len) continue;  // not beside each other
+      const double dist = std::abs(u.x() * m.y() - u.y() * m.x());
+      if (dist > 0.5) out[i].nearest_px = std::min(out[i].nearest_px, dist);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+double parallel_spacing_px(const camera::CameraModel& camera, const camera::LineModel& model,
+                           const camera::Pose& T_cam_model) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const Neighbour& n : parallel_neighbours(camera, model, T_cam_model)) best = std::min(best, n.nearest_px);
+  return best;
+}
+
+double crowded_length_share(const camera::CameraModel& camera, const camera::LineModel& model,
+                            const camera::Pose& T_cam_model, double spacing_px) {
+  double crowded = 0.0, total = 0.0;
+  for (const Neighbour& n : parallel_neighbours(camera, model, T_cam_model)) {
+    total += n.length_px;
+    if (n.nearest_px < spacing_px) crowded += n.length_px;
+  }
+  return total > 0.0 ? crowded / total : 0.0;
+}
+
+namespace {
+
 // Parameters of a pose around the prior (see the header).
 struct Params {
   std::array<double, 6> v{};  // du, dv, roll, log scale, tilt x, tilt y
@@ -215,37 +283,7 @@ class Aligner {
     return std::max(r, 5.0);
   }
 
-  // The smallest image distance between two parallel (within 5 deg), overlapping projected segments at the prior
-  // (infinity when none).
-  [[nodiscard]] double parallel_spacing_px() const {
-    struct S2 {
-      Vector2d a, b;
-    };
-    std::vector<S2> segs;
-    for (const auto& s : model_.segments_m) {
-      const Vector3d A = prior_.pose.apply(s.a_m), B = prior_.pose.apply(s.b_m);
-      if (A.z() < kNear_m || B.z() < kNear_m) continue;
-      segs.push_back({pinhole(A), pinhole(B)});
-    }
-    double best = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < segs.size(); ++i) {
-      const Vector2d d = segs[i].b - segs[i].a;
-      const double len = d.norm();
-      if (!(len > 1.0)) continue;
-      const Vector2d u = d / len;
-      for (std::size_t j = 0; j < segs.size(); ++j) {
-        if (j == i) continue;
-        const Vector2d e = segs[j].b - segs[j].a;
-        if (!(e.norm() > 1.0) || std::abs(u.x() * e.y() - u.y() * e.x()) / e.norm() > std::sin(rad(5.0))) continue;
-        const Vector2d m = 0.5 * (segs[j].a + segs[j].b) - segs[i].a;
-        const double t = m.dot(u);
-        if (t < 0.0 || t > len) continue;  // not beside each other
-        const double dist = std::abs(u.x() * m.y() - u.y() * m.x());
-        if (dist > 0.5) best = std::min(best, dist);
-      }
-    }
-    return best;
-  }
+  [[nodiscard]] double parallel_spacing_px() const { return pose::parallel_spacing_px(cam_, model_, prior_.pose); }
 
   // Samples along the projected model (undistorted pixels) every `spacing` pixels.
   void samples(const camera::Pose& T, double spacing, std::vector<Sample>& out) const {

@@ -103,6 +103,8 @@ bool StandstillMonitor::start(const camera::CameraModel& camera, const Undistort
   cells_y_ = (height_ + o_.cell_px - 1) / o_.cell_px;
   cell_far_area_.assign(static_cast<std::size_t>(cells_x_ * cells_y_), 0);
   cell_count_.assign(cell_far_area_.size(), 0);
+  cell_band_area_.assign(cell_far_area_.size(), 0);
+  cell_band_count_.assign(cell_far_area_.size(), 0);
   area_near_ = area_ring_ = area_far_ = 0.0;
   for (int y = 0; y < height_; ++y) {
     for (int x = 0; x < width_; ++x) {
@@ -116,14 +118,46 @@ bool StandstillMonitor::start(const camera::CameraModel& camera, const Undistort
         area_ring_ += 1.0;
       } else if (d > o_.far_px) {
         c = d <= o_.background_px ? 4 : 0;
-        if (c == 4) area_far_ += 1.0;
-        ++cell_far_area_[static_cast<std::size_t>((y / o_.cell_px) * cells_x_ + x / o_.cell_px)];
+        const auto cell = static_cast<std::size_t>((y / o_.cell_px) * cells_x_ + x / o_.cell_px);
+        if (c == 4) {
+          area_far_ += 1.0;
+          ++cell_band_area_[cell];
+        }
+        ++cell_far_area_[cell];
       }
       cls_[static_cast<std::size_t>(y) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(x)] = c;
     }
   }
   window_id_ = 0;
   return length_px_ > 0.0;
+}
+
+double StandstillMonitor::background_rate(double window_s) const {
+  // Poisson noise is uniform: a band cell far above the rate the others give holds structure (clutter, a hot pixel,
+  // flicker), not noise. Leave out such cells (Bonferroni over the cells) and re-estimate until none is left out;
+  // the rate only falls, so the loop ends.
+  const double alpha = o_.significance / static_cast<double>(std::max<std::size_t>(cell_band_area_.size(), 1));
+  std::vector<bool> out(cell_band_area_.size(), false);
+  double rate = 0.0;
+  for (bool changed = true; changed;) {
+    double n = 0.0, area = 0.0;
+    for (std::size_t c = 0; c < cell_band_area_.size(); ++c) {
+      if (out[c]) continue;
+      n += cell_band_count_[c];
+      area += cell_band_area_[c];
+    }
+    // One pseudo-event, as the hold's rate: no event still means a finite rate.
+    rate = (n + 1.0) / (std::max(area, 1.0) * window_s);
+    changed = false;
+    for (std::size_t c = 0; c < cell_band_area_.size(); ++c) {
+      if (out[c] || cell_band_count_[c] < 2) continue;
+      if (poisson_upper_tail(cell_band_count_[c], rate * cell_band_area_[c] * window_s) < alpha) {
+        out[c] = true;
+        changed = true;
+      }
+    }
+  }
+  return rate;
 }
 
 StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t window_us, std::int64_t fresh_from_us,
@@ -135,6 +169,7 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
     window_id_ = 1;
   }
   std::fill(cell_count_.begin(), cell_count_.end(), 0);
+  std::fill(cell_band_count_.begin(), cell_band_count_.end(), 0);
   std::size_t fresh_near = 0, fresh_ring = 0, fresh_far = 0;
   for (const Event& e : window) {
     if (e.x >= width_ || e.y >= height_) continue;
@@ -144,6 +179,7 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
       case 4:
         ++ev.far;
         fresh_far += fresh;
+        ++cell_band_count_[static_cast<std::size_t>((e.y / o_.cell_px) * cells_x_ + e.x / o_.cell_px)];
         [[fallthrough]];
       case 0:
         if (stamp_[i] != window_id_) {
@@ -176,6 +212,7 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
   // The noise rate over the hold so far (one pseudo-event: no event at all still means a finite rate).
   const double exposure_s = std::max(acc_exposure_s_, window_s);
   ev.noise_rate_hz = (acc_far_ + 1.0) / (std::max(area_far_, 1.0) * exposure_s);
+  ev.background_rate_hz = background_rate(window_s);
   ev.expected_near = ev.noise_rate_hz * area_near_ * window_s;
   ev.expected_ring = ev.noise_rate_hz * area_ring_ * window_s;
   const auto moving = [&](double n_near, double n_ring, double t_s, double& implied) {

@@ -139,7 +139,9 @@ struct PoseFilesConfig {
   bool require_redundancy = false;
   /// With a prior, when the detected lines give no verified pose: search the pose around the prior by the ridge
   /// contrast of the events along the projected model (docs/algorithms.md, "Direct alignment with a prior").
-  bool direct_alignment = false;
+  /// "auto": only for a model whose parallel lines lie closer in the image than the line search resolves (a small
+  /// checkerboard); "on" / "true": always; "off" / "false": never.
+  std::string direct_alignment = "auto";
   double max_acceleration_m_s2 = 1.0;
   double max_angular_acceleration_deg_s2 = 90.0;
 };

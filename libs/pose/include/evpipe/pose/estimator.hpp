@@ -119,6 +119,11 @@ struct EstimatorOptions {
   /// off) pass alone and fail at the next windows. An unconfirmed track whose update is not healthy is dropped (the
   /// search starts again), so the confirmation is that many healthy updates in a row right after the initialisation.
   int confirm_windows_without_prior = 3;
+  /// ... and for a pose found by the direct alignment (InitialiserOptions::direct_alignment): it has no
+  /// correspondences, and its search's best place can nearly tie with a wrong one (seq_0003 at 255 ms: ridge contrast
+  /// 149.0 against 148.9, 68 mm / 19 deg off, verified alone). One healthy update on the next window: seq_0003's
+  /// span covered 67 -> 59 % with `significance`, 82 -> 78 % raw.
+  int confirm_windows_direct = 1;
   /// ... and those updates together must show this share of the cells their edges should show
   /// (VerifyResult::cells_supported / cells_expected summed), else the track is dropped. A pose that lays part of
   /// the model on other structure shows about half of them, window after window, and passes the single window's
@@ -181,6 +186,8 @@ struct InitOutcome {
   bool measured_at_t{true};
   /// !measured_at_t: the time the events the pose was fitted on span (it stands for their middle, not for t_us).
   std::int64_t blur_span_us{0};
+  /// Found by the direct alignment (InitResult::direct): confirmed like a track found without a prior.
+  bool direct{false};
   std::string note;  ///< why not ok
   std::uint64_t generation{0};
   /// Set by advance_initialisation(): the track was carried on the worker over the windows that passed during
@@ -367,7 +374,10 @@ class PoseEstimator {
   std::int64_t hold_newest_raw_us_{0};      ///< ... of the raw events
   EventSpan raw_{};  ///< during process(): its `raw` events (the hold's standstill test counts them too)
   /// Background activity near the model (events per pixel per second), measured by the last support test
-  /// (signal_near) or hold window: what the noise explains of an accumulated history's events.
+  /// (signal_near) or hold window: what the noise explains of an accumulated history's events. The Poisson part
+  /// only (StandstillEvidence::background_rate_hz): clutter beside the target is not noise, and counted as noise it
+  /// made every window of the real board (7 000 events, 6.9 Hz/px of "noise" from its monitor's border) a sparse one
+  /// tracked on 100 ms of events, 7 px of motion across a grid 5.9 px apart.
   double noise_rate_hz_{0.0};
   /// Fusion of the published poses (options_.filter), and the last two fused ones by measurement time (a hold
   /// holds the last pose, or the one before when the last moved too fast to have stopped: try_hold).

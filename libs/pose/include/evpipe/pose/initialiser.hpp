@@ -26,6 +26,9 @@ namespace evpipe::pose {
 // the best sets and solves each with OPnL; every pose inside the prior's tolerance with the model in front of
 // the camera is scored by the events it explains; the best poses are re-associated with all detected lines
 // and re-solved (OPnL + refinement) on all inliers; the pose explaining the most events wins.
+/// When the initialiser searches the pose by direct alignment (InitialiserOptions::direct_alignment).
+enum class DirectAlignment { off, on, automatic };
+
 struct InitialiserOptions {
   /// Line detection (its `camera` is set from the camera argument).
   LineDetectorOptions detector;
@@ -88,16 +91,20 @@ struct InitialiserOptions {
   /// The refined candidates are ranked by verify_pose() with these options (verified first, then supported
   /// cells, then explained events).
   VerifyOptions verification;
-  /// With a prior, when the line correspondences give no verified pose (a small target with a fine grid: few,
-  /// one-sided detected lines), the pose is searched by aligning the model with the events directly
-  /// (prior_alignment.hpp); its best pose and its runner-up are refined by the tracker (track_window with
-  /// `verification`) and the pose is accepted only when it verifies and the runner-up, if it verifies too, is
-  /// clearly worse (compare_poses beyond symmetry_decision_log_ratio). Without a verified pose from it, the result
-  /// is the line correspondences' (verified or not) as with the option off.
-  /// Off by default: on the real evbench board it initialises correctly in most windows but once (seq_0003, 255 ms)
-  /// a wrong pose (76 mm / 19 deg) verified; on clutter-planar-lines with a prior it starts the track earlier, and
-  /// the tracker then drifts to one wrong confident pose (2.4 deg) that the line search avoided (docs/results-pose.md).
-  bool direct_alignment = false;
+  /// With a prior, the pose may be searched by aligning the model with the events directly (prior_alignment.hpp): its
+  /// best pose and its runner-up are refined by the tracker (track_window with `verification`) and the pose is
+  /// accepted only when it verifies and the runner-up, if it verifies too, is clearly worse (compare_poses beyond
+  /// symmetry_decision_log_ratio).
+  /// automatic (default): instead of the line search, for a model whose lines the correspondences cannot resolve:
+  /// more than half of its projected length at the prior lies on segments with a parallel neighbour beside them
+  /// closer than consistency_px (crowded_length_share), where one detected line is consistent with two model lines
+  /// and a fine grid's poses alias (the evbench board's grid, 5.9 px apart; the same board 55 px wide on the DAVIS346
+  /// was tracked 180 mm / 29 deg off from the lines). Other models: the line search alone.
+  /// on: the line search, then, when it gives no verified pose, the alignment (without a verified pose from it the
+  /// line search's result, verified or not). On every model this cost more wrong confident poses on the clutter
+  /// scenes (decoys, a board beside line clutter whose track it started earlier) and 1-2 s per attempt
+  /// (docs/history.md). off: the line search alone.
+  DirectAlignment direct_alignment = DirectAlignment::automatic;
   PriorAlignmentOptions alignment;
 };
 

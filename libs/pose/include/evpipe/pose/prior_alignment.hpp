@@ -72,6 +72,19 @@ struct PriorAlignmentResult {
                                                   const camera::LineModel& model, const camera::PosePrior& prior,
                                                   const PriorAlignmentOptions& options = {});
 
+/// The smallest image distance (pixels, undistorted) between two projected model segments that are parallel (within
+/// 5 deg) and beside each other at T_cam_model; infinity when no two are. How finely the model's lines lie in the
+/// image: what line detection and line correspondences must resolve (a checkerboard's grid, 5.9 px on the evbench
+/// board).
+[[nodiscard]] double parallel_spacing_px(const camera::CameraModel& camera, const camera::LineModel& model,
+                                         const camera::Pose& T_cam_model);
+
+/// The share of the projected model's length (segments in front of the camera) that lies on segments with such a
+/// parallel neighbour closer than spacing_px: how much of the model a line search with that resolution cannot tell
+/// apart (the evbench board's grid: all of it at 8 px; the roadheader wireframe: a few thin parts).
+[[nodiscard]] double crowded_length_share(const camera::CameraModel& camera, const camera::LineModel& model,
+                                          const camera::Pose& T_cam_model, double spacing_px);
+
 /// The score align_at_prior gives T_cam_model at blur sigma_px (for tests and diagnostics).
 [[nodiscard]] double prior_alignment_score(EventSpan events, const camera::CameraModel& camera,
                                            const camera::LineModel& model, const camera::Pose& T_cam_model,

@@ -60,6 +60,10 @@ struct StandstillOptions {
 struct StandstillEvidence {
   std::size_t near{0}, ring{0}, far{0};  ///< events per class in the window
   double noise_rate_hz{0.0};             ///< per pixel, measured in `far` over the hold so far
+  /// Per pixel, the window's background noise alone: `far` events in the cells whose counts the Poisson noise
+  /// explains (cells significantly above the rate, clutter or a hot pixel, left out until none is). <= the window's
+  /// `far` rate; the same on a uniform background.
+  double background_rate_hz{0.0};
   double expected_near{0.0}, expected_ring{0.0};
   double implied_motion_px{0.0};  ///< excess in near + ring / visible length (window or hold, the larger)
   bool moving{false};             ///< significant excess near the model implying > max_motion_px (window or hold)
@@ -86,6 +90,8 @@ class StandstillMonitor {
   [[nodiscard]] double visible_length_px() const noexcept { return length_px_; }
 
  private:
+  /// background_rate_hz of the window just counted.
+  [[nodiscard]] double background_rate(double window_s) const;
   StandstillOptions o_;
   int width_{0}, height_{0};
   int cells_x_{0}, cells_y_{0};
@@ -93,6 +99,8 @@ class StandstillMonitor {
   std::vector<std::uint32_t> cell_far_area_;
   std::vector<std::uint32_t> stamp_;  ///< per pixel: the window that last counted it (distinct pixels per cell)
   std::vector<std::uint32_t> cell_count_;
+  std::vector<std::uint32_t> cell_band_area_;   ///< per cell: its `far` pixels within background_px (class 4)
+  std::vector<std::uint32_t> cell_band_count_;  ///< per cell: the window's events on them
   std::uint32_t window_id_{0};
   double area_near_{0}, area_ring_{0}, area_far_{0};
   double length_px_{0};
