@@ -101,6 +101,16 @@ TEST(PriorAlignment, TheTruthScoresAboveTheGridShiftedByOneLine) {
   EXPECT_GT(at_truth, pose::prior_alignment_score(w, s.scene.camera, s.scene.model, turned));
 }
 
+// Under the sanitizers (Debug, ~20x slower) two windows per seed and the initialiser's alignment on a grid 100x coarser
+// cover the code paths (82 s with every window); the optimised builds check the search's reach.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr std::int64_t kLastWindowUs = 120'000;
+constexpr double kInitAlignmentReads = 2e6;
+#else
+constexpr std::int64_t kLastWindowUs = 240'000;
+constexpr double kInitAlignmentReads = pose::PriorAlignmentOptions{}.max_level0_reads;
+#endif
+
 // From a prior 50 mm / 10 deg off (seeded directions) the alignment lands within the tracker's reach of the truth
 // (measured: 1.5-12 mm / 1.6-5.7 deg before refinement), and a direct initialisation is never wrong. (The line
 // correspondences' pose of this small board can be: seen 130 mm / 21 deg verified from 4 lines, seed 3 at 240 ms;
@@ -109,7 +119,7 @@ TEST(PriorAlignment, SmallGridBoardFromAPriorOff50mm10deg) {
   for (const std::uint64_t seed : {3u, 4u}) {
     const BoardScene s(seed);
     std::mt19937_64 rng(seed + 100);
-    for (std::int64_t t = 60'000; t <= 240'000; t += 60'000) {
+    for (std::int64_t t = 60'000; t <= kLastWindowUs; t += 60'000) {
       SCOPED_TRACE(::testing::Message() << "seed " << seed << ", window at " << t);
       const auto w = slice(s.events, t - 30'000, t + 30'000);
       const camera::Pose truth = *camera::interpolate(s.scene.trajectory, t);
@@ -124,9 +134,7 @@ TEST(PriorAlignment, SmallGridBoardFromAPriorOff50mm10deg) {
       EXPECT_LT(deg, 8.0);
       pose::InitialiserOptions io;
       io.verification.symmetries = pose::model_symmetries(s.scene.model);
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-      io.alignment.max_level0_reads = 2e6;  // the code paths, not the search's reach (Debug, ~20x slower)
-#endif
+      io.alignment.max_level0_reads = kInitAlignmentReads;
       const auto init = pose::initialise_pose(w, s.scene.camera, s.scene.model, prior, io);
       // The board is finer than the line search resolves: DirectAlignment::automatic searches it directly, never by
       // the lines (their poses alias onto other grid lines: 180 mm / 29 deg off in the pipeline).

@@ -245,7 +245,7 @@ TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
     pose::PoseEstimator est(cam, model, prior, eo);
     int tracking = 0, wrong = 0, good = 0, windows = 0;
     for (std::int64_t t0 = batch.events.front().t_us; t0 + 30'000 <= batch.events.back().t_us; t0 += 30'000) {
-      if (!kWholeSequences && t0 - batch.events.front().t_us >= 8 * 30'000) break;
+      if (!kWholeSequences && t0 - batch.events.front().t_us >= 4 * 30'000) break;
       const auto out = est.process(slice(batch.events, t0, t0 + 30'000), t0 + 15'000);
       const auto truth = camera::interpolate(gt, t0 + 15'000);
       if (!truth) continue;

@@ -158,10 +158,6 @@ class Occupancy {
   std::size_t pixels_{0};
 };
 
-}  // namespace
-
-namespace {
-
 // Per projected segment in front of the camera (pinhole, undistorted pixels): its length and the image distance to
 // the nearest other segment parallel to it (within 5 deg) and beside it (infinity when none).
 struct Neighbour {

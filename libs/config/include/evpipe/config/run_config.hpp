@@ -137,10 +137,10 @@ struct PoseFilesConfig {
   /// A verified pose must stay fixed without any one of its supporting edges (no single edge carries a degree of
   /// freedom alone; docs/algorithms.md, "Pose health"): fewer wrong poses beside clutter, fewer poses.
   bool require_redundancy = false;
-  /// With a prior, when the detected lines give no verified pose: search the pose around the prior by the ridge
-  /// contrast of the events along the projected model (docs/algorithms.md, "Direct alignment with a prior").
-  /// "auto": only for a model whose parallel lines lie closer in the image than the line search resolves (a small
-  /// checkerboard); "on" / "true": always; "off" / "false": never.
+  /// With a prior, search the pose around the prior by the ridge contrast of the events along the projected model
+  /// (docs/algorithms.md, "Direct alignment with a prior"). "auto": instead of the detected lines, for a model whose
+  /// parallel lines mostly lie closer in the image than the line search resolves (a small checkerboard); "on" /
+  /// "true": for every model, when the detected lines give no verified pose; "off" / "false": never.
   std::string direct_alignment = "auto";
   double max_acceleration_m_s2 = 1.0;
   double max_angular_acceleration_deg_s2 = 90.0;

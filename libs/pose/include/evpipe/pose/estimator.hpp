@@ -119,17 +119,17 @@ struct EstimatorOptions {
   /// off) pass alone and fail at the next windows. An unconfirmed track whose update is not healthy is dropped (the
   /// search starts again), so the confirmation is that many healthy updates in a row right after the initialisation.
   int confirm_windows_without_prior = 3;
-  /// ... and for a pose found by the direct alignment (InitialiserOptions::direct_alignment): it has no
-  /// correspondences, and its search's best place can nearly tie with a wrong one (seq_0003 at 255 ms: ridge contrast
-  /// 149.0 against 148.9, 68 mm / 19 deg off, verified alone). One healthy update on the next window: seq_0003's
-  /// span covered 67 -> 59 % with `significance`, 82 -> 78 % raw.
-  int confirm_windows_direct = 1;
   /// ... and those updates together must show this share of the cells their edges should show
   /// (VerifyResult::cells_supported / cells_expected summed), else the track is dropped. A pose that lays part of
   /// the model on other structure shows about half of them, window after window, and passes the single window's
   /// test (min_coverage, a third) now and then; a true pose shows most of them (measured 0.8-0.95 on the synthetic
   /// sets). The threshold is the middle between the two, two thirds.
   double confirm_min_coverage_without_prior = 2.0 / 3.0;
+  /// A track started by the direct alignment (InitialiserOptions::direct_alignment) is published from this many
+  /// healthy updates on (at least confirm_windows): the alignment has no correspondences, and its search's best place
+  /// can nearly tie with a wrong one (seq_0003 at 255 ms: ridge contrast 149.0 against 148.9, 68 mm / 19 deg off,
+  /// verified alone). One: seq_0003's span within 10 mm / 1 deg 67 -> 59 % with `significance`, 82 -> 78 % raw.
+  int confirm_windows_direct = 1;
   /// Compare every initial and tracked pose with the pose turned by the model's partial symmetries
   /// (model_symmetries(), filled into init.verification / track.verification when they list none): a pose whose
   /// symmetric alternative explains the window better is refused, and without a prior an initial pose whose
@@ -186,7 +186,7 @@ struct InitOutcome {
   bool measured_at_t{true};
   /// !measured_at_t: the time the events the pose was fitted on span (it stands for their middle, not for t_us).
   std::int64_t blur_span_us{0};
-  /// Found by the direct alignment (InitResult::direct): confirmed like a track found without a prior.
+  /// Found by the direct alignment (InitResult::direct): published after confirm_windows_direct healthy updates.
   bool direct{false};
   std::string note;  ///< why not ok
   std::uint64_t generation{0};

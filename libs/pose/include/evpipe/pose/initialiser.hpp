@@ -18,6 +18,9 @@
 
 namespace evpipe::pose {
 
+/// When the initialiser searches the pose by direct alignment (InitialiserOptions::direct_alignment).
+enum class DirectAlignment { off, on, automatic };
+
 // How it works (docs/algorithms.md, "Automatic correspondences"): for each pseudo-prior (the prior itself, or
 // without a prior a set of sampled view directions with a depth guessed from the model's size), the visible
 // model segments are projected; pairs of non-parallel detected lines matched to pairs of model segments
@@ -26,9 +29,6 @@ namespace evpipe::pose {
 // the best sets and solves each with OPnL; every pose inside the prior's tolerance with the model in front of
 // the camera is scored by the events it explains; the best poses are re-associated with all detected lines
 // and re-solved (OPnL + refinement) on all inliers; the pose explaining the most events wins.
-/// When the initialiser searches the pose by direct alignment (InitialiserOptions::direct_alignment).
-enum class DirectAlignment { off, on, automatic };
-
 struct InitialiserOptions {
   /// Line detection (its `camera` is set from the camera argument).
   LineDetectorOptions detector;
