@@ -175,16 +175,17 @@ StandstillEvidence StandstillMonitor::observe(EventSpan window, std::int64_t win
     if (e.x >= width_ || e.y >= height_) continue;
     const std::size_t i = static_cast<std::size_t>(e.y) * static_cast<std::size_t>(width_) + e.x;
     const bool fresh = e.t_us >= fresh_from_us;
+    const auto cell = static_cast<std::size_t>((e.y / o_.cell_px) * cells_x_ + e.x / o_.cell_px);
     switch (cls_[i]) {
       case 4:
         ++ev.far;
         fresh_far += fresh;
-        ++cell_band_count_[static_cast<std::size_t>((e.y / o_.cell_px) * cells_x_ + e.x / o_.cell_px)];
+        ++cell_band_count_[cell];
         [[fallthrough]];
       case 0:
         if (stamp_[i] != window_id_) {
           stamp_[i] = window_id_;
-          ++cell_count_[static_cast<std::size_t>((e.y / o_.cell_px) * cells_x_ + e.x / o_.cell_px)];
+          ++cell_count_[cell];
         }
         break;
       case 1:
