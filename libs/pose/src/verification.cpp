@@ -297,13 +297,10 @@ std::vector<Cell> build_cells(CountImage& img, const camera::CameraModel& camera
   return cells;
 }
 
-// The side test compares densities above the window's background density (noise_density): uniform noise fills
-// the band and the strips alike, and over a long history under noise it hid a slow edge's concentration (the plain
-// ratio verified 1 of 9 slow-roadheader spans of 0.5 s at 2 Hz/px at their true pose, this one 5).
-bool cell_supported(const Counts& k, int threshold, const VerifyOptions& o, double noise_density) {
-  const double on_d = k.on_px > 0 ? k.on / k.on_px - noise_density : 0.0;
-  const double left_d = k.left_px > 0 ? k.left / k.left_px - noise_density : 0.0;
-  const double right_d = k.right_px > 0 ? k.right / k.right_px - noise_density : 0.0;
+bool cell_supported(const Counts& k, int threshold, const VerifyOptions& o) {
+  const double on_d = k.on_px > 0 ? k.on / k.on_px : 0.0;
+  const double left_d = k.left_px > 0 ? k.left / k.left_px : 0.0;
+  const double right_d = k.right_px > 0 ? k.right / k.right_px : 0.0;
   return k.on >= threshold && on_d > o.side_ratio * left_d && on_d > o.side_ratio * right_d;
 }
 
@@ -402,7 +399,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
     SegmentSupport& s = segs.back();
     ++s.cells;
     s.normal_motion_px += c.normal_motion_px;
-    supported[j] = cell_supported(c.counts, res.support_threshold, o, density);
+    supported[j] = cell_supported(c.counts, res.support_threshold, o);
     if (supported[j]) ++s.supported;
   }
   // What support a true segment can show. The events above noise per cell are measured on the window: the upper
@@ -573,7 +570,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
               continue;
             }
             ++judged;
-            if (cell_supported(img.cell(p, q, o, false), res.support_threshold, o, density)) ++shown;
+            if (cell_supported(img.cell(p, q, o, false), res.support_threshold, o)) ++shown;
           }
           if (judged < o.displaced_min_cells || 2 * judged < u.count) continue;
           const double n = static_cast<double>(judged);
@@ -703,7 +700,7 @@ VerifyResult verify_core(EventSpan events, const camera::CameraModel& camera, co
         for (std::size_t k = b; k < e; ++k) {
           if (other_only[k]) {
             other[k].counts = img.cell(other[k].p_px, other[k].q_px, o, false, other_bins[k]);
-            other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o, density);
+            other_supported[k] = cell_supported(other[k].counts, res.support_threshold, o);
           }
           other_expected[k] = share;
         }

@@ -9,8 +9,8 @@
 //     density (events per pixel away from every band: sensor noise AND the scene's other structure) reaches
 //     with probability <= false_alarm (Poisson), and
 //   - the band's event density beats both side strips beside it (the same model shifted by a few pixels across
-//     the segment) by side_ratio, both above that noise density: a straight edge concentrates its events on the
-//     line, texture, flicker or a crossing edge fill the band and its sides alike (and so does the noise).
+//     the segment) by side_ratio: a straight edge concentrates its events on the line, texture, flicker or a
+//     crossing edge fill the band and its sides alike.
 // A segment only fires when the target moves across it: with a motion hint (the pose at an earlier time) a
 // segment whose predicted normal motion over the window is below min_normal_motion_px is not required (it cannot
 // have support). The pose is VERIFIED when the required segments are supported along their length (per segment
@@ -49,7 +49,7 @@ struct VerifyOptions {
   double band_px = 1.5;        ///< events within this distance of the cell's segment count for it
   double side_gap_px = 0.5;    ///< the side strips start this far beyond the band ...
   double side_width_px = 1.5;  ///< ... and are this wide, one on each side
-  double side_ratio = 1.5;     ///< a supported band's density above the noise exceeds each side strip's by this factor
+  double side_ratio = 1.5;     ///< a supported band's event density exceeds each side strip's by this factor
   /// A segment whose cells meet another projected segment's band (in their band or side strips) in at least this
   /// share judges its cells on its own pixels only: a crossing grid line's events explain those pixels as much as
   /// this segment (a fine grid: a small board's lines 5.9 px apart fill every side strip). A segment crossed in fewer
