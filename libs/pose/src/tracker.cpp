@@ -171,7 +171,7 @@ void normal_equations(const std::vector<ProjectedSegment>& segs, const std::vect
 struct RoundResult {
   camera::Pose T;
   std::vector<double> w;  // least-squares weights at T (the segment motions' fit at the final pose uses them)
-  double sigma_n{0.0};    // robust scale used (normalised units)
+  double sigma_n{0.0};    // robust (S-) scale of the residuals (normalised units): the gate, health and covariance
   int iterations{0};
   bool converged{false};
 };
@@ -196,9 +196,44 @@ double robust_cost(const std::vector<double>& r, double sigma, const TrackerOpti
   return loss::tukey_cost_and_weights(r, sigma, o.c_mm, w_ls);
 }
 
+// The edge's scale in residuals r_n (normalised units) that are a mixture of the edge's, Gaussian N(0, sigma²) with
+// an unknown count, and the background's, uniform over the gate [-gate_n, gate_n] with a known density
+// background_per_n (events per normalised unit of residual): EM for sigma and the edge's count (a Poisson intensity
+// n_e phi(d; sigma) + background_per_n, the background's part fixed), started at start_n (the S-scale) with the count
+// the background leaves; sigma is floored at floor_n. Returns start_n unless the iteration settles with at least
+// kMinEdgeEvents for the edge (something to measure a scale on) and under half of the residuals (past the S-scale's
+// breakdown point). The gate's Gaussian truncation is ignored (the gate is >= 4 sigma_S).
+double edge_scale(const std::vector<double>& r_n, double start_n, double background_per_n, double gate_n,
+                  double floor_n) {
+  constexpr int kMaxIterations = 30;
+  constexpr double kRelativeTolerance = 1e-3;
+  constexpr double kMinEdgeEvents = 10.0;
+  const double n = static_cast<double>(r_n.size());
+  double edge_events = std::max(n - background_per_n * 2.0 * gate_n, 0.1 * n), sigma_n = start_n;
+  for (int it = 0; it < kMaxIterations; ++it) {
+    double sum_w = 0.0, sum_wd2 = 0.0;
+    const double height = edge_events / (std::sqrt(2.0 * std::numbers::pi) * sigma_n);
+    for (const double d : r_n) {
+      const double g = height * std::exp(-0.5 * d * d / (sigma_n * sigma_n));
+      const double w = g / (g + background_per_n);
+      sum_w += w;
+      sum_wd2 += w * d * d;
+    }
+    if (!(sum_w > 1.0)) return start_n;
+    const double next_n = std::max(std::sqrt(sum_wd2 / sum_w), floor_n);
+    if (!std::isfinite(next_n)) return start_n;
+    const bool settled = std::abs(next_n / sigma_n - 1.0) < kRelativeTolerance;
+    edge_events = sum_w;
+    sigma_n = next_n;
+    if (settled) return edge_events >= kMinEdgeEvents && edge_events < 0.5 * n ? sigma_n : start_n;
+  }
+  return start_n;  // not settled
+}
+
 RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegment>& segs,
                         const std::vector<Association>& assoc, double sigma_floor_n, double sigma_previous_n,
-                        const TrackerOptions& o, SegmentMotion* motion) {
+                        const TrackerOptions& o, SegmentMotion* motion, double background_per_n = 0.0,
+                        double gate_n = 0.0) {
   RoundResult res;
   res.T = T0;
   const double near_m = std::max(o.projection.near_m, 1e-6);
@@ -223,12 +258,16 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
     const double s = mm::s_scale(r, so).sigma;
     res.sigma_n = s >= sigma_floor_n ? s : sigma_floor_n;  // NaN-safe floor
   }
-  double cost = robust_cost(r, res.sigma_n, o, w, scratch);
+  // The weights' scale: the S-scale, or the edge's under background (TrackerOptions::background_scale).
+  double fit_sigma_n = res.sigma_n;
+  if (background_per_n > 0.0 && gate_n > 0.0 && res.sigma_n > sigma_floor_n && !o.lopet_compatible)
+    fit_sigma_n = std::min(res.sigma_n, edge_scale(r, res.sigma_n, background_per_n, gate_n, sigma_floor_n));
+  double cost = robust_cost(r, fit_sigma_n, o, w, scratch);
   if (motion != nullptr) {
     // The segment motions were fitted with every association at weight 1: once more with the robust weights.
     motion->weights = &w;
     if (!residuals(T0, segs, assoc, near_m, true, geom, r, motion)) return res;
-    cost = robust_cost(r, res.sigma_n, o, w, scratch);
+    cost = robust_cost(r, fit_sigma_n, o, w, scratch);
   }
   double lambda = o.lambda_initial;
   Matrix6d H;
@@ -257,7 +296,7 @@ RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegme
       const camera::Pose T_try = apply_increment(res.T, delta);
       if (motion != nullptr) motion->weights = &w;
       if (residuals(T_try, segs, assoc, near_m, true, geom_try, r_try, motion)) {
-        cost_try = robust_cost(r_try, res.sigma_n, o, w_try, scratch);
+        cost_try = robust_cost(r_try, fit_sigma_n, o, w_try, scratch);
         if (cost_try <= cost) {
           accepted = true;
           res.T = T_try;
@@ -454,7 +493,19 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
       up.associated = assoc.size();
       return up;
     }
-    RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, sigma_n, o, motion);
+    // The background's height in the residuals (TrackerOptions::background_scale): the gathered events left out of
+    // the association, per pixel of the image outside the gate's band, times the projected model's length (per pixel
+    // of residual), in normalised units. An approximation: the bands' ends, overlaps and the image border are not
+    // modelled, and events the ambiguity rules drop inside the band count as away.
+    double background_per_n = 0.0;
+    if (o.background_scale) {
+      double length_px = 0.0;
+      for (const ProjectedSegment& sg : segs) length_px += (sg.b_n - sg.a_n).norm() * f;
+      const double away_px2 = static_cast<double>(camera.width) * camera.height - 2.0 * gate_px * length_px;
+      const double away_events = static_cast<double>(gathered.index.size()) - static_cast<double>(assoc.size());
+      if (away_px2 > 0.0 && away_events > 0.0) background_per_n = away_events / away_px2 * length_px * f;
+    }
+    RoundResult rr = solve_round(T, segs, assoc, sigma_floor_n, sigma_n, o, motion, background_per_n, gate_px / f);
     last_w = std::move(rr.w);
     const double moved_px = image_motion_px(segs, T, rr.T, f);
     T = rr.T;

@@ -68,6 +68,18 @@ struct TrackerOptions {
   double c_s = loss::kTukeyS;
   int s_max_iterations = 10;
   double c_mm = loss::kTukeyMM;  ///< Tukey c of the MM step
+  /// The scale of an edge under background activity (docs/algorithms.md, "Scale under noise"). The S-scale breaks
+  /// down once the association holds more background events than edge events (a sparse window's history, raw events
+  /// under noise): it then measures the background's spread across the gate, and Tukey's weights at that scale let
+  /// the gate's uneven background pull the pose. The associated residuals are a mixture of the edge's (Gaussian) and
+  /// the background's (uniform, of the height the events away from the model give: events per pixel there × the
+  /// projected model's length); the Gaussian's scale is fitted by EM with the uniform part fixed and, past the
+  /// breakdown point (the mixture gives the edge under half the residuals), the IRLS weights use the smaller of it and
+  /// the S-scale. The gate, the health tests and the covariance keep the S-scale. Off by default: fits from the truth
+  /// stay on the edges (the board at 5 Hz/px raw: 0.4-0.5 deg off instead of up to 5), but in the pipeline it moved
+  /// the marginal slow and stop runs both ways and raised the wrong confident poses beside the unseen planar decoys
+  /// 23 -> 33-39 (docs/history.md, session 27).
+  bool background_scale = false;
   /// The authors' demo-code variant instead (pose.md §7.4/7.5): scale and weights recomputed from the current
   /// residuals at every iteration with c = 4.685 for both passes, weights normalised to sum 1 and squared in
   /// the cost. For A/B comparisons only.
