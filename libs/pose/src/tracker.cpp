@@ -232,8 +232,7 @@ double edge_scale(const std::vector<double>& r_n, double start_n, double backgro
 
 RoundResult solve_round(const camera::Pose& T0, const std::vector<ProjectedSegment>& segs,
                         const std::vector<Association>& assoc, double sigma_floor_n, double sigma_previous_n,
-                        const TrackerOptions& o, SegmentMotion* motion, double background_per_n = 0.0,
-                        double gate_n = 0.0) {
+                        const TrackerOptions& o, SegmentMotion* motion, double background_per_n, double gate_n) {
   RoundResult res;
   res.T = T0;
   const double near_m = std::max(o.projection.near_m, 1e-6);
