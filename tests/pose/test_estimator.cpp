@@ -674,6 +674,53 @@ TEST(PoseEstimator, TheLongInitialisationAccumulationNeedsAPoseToSearchAround) {
   }
 }
 
+// After a loss the re-initialisation's accumulations span no more than the model's image took to move
+// track_max_blur_px at the last tracked speed: a target lost while moving keeps moving, and its long accumulation is a
+// blur that fitted other structure (decoy seed 7403: a re-initialised board 9-17 deg off, verified). The same
+// windows without a track before them reach back to the long accumulation, and so do the lost estimator's once the
+// last good pose is older than that accumulation (the target may have stopped or slowed since).
+TEST(PoseEstimator, AReinitialisationAfterALossAccumulatesNoMoreThanTheMotionBlurAllows) {
+  constexpr std::int64_t kDuration_us = 2'100'000;
+  const Scene s("target-planar.yaml", 0.8, 20261128, kDuration_us);
+  pose::EstimatorOptions o;
+  o.hold = false;  // the empty windows below lose the target (HoldsAStillTarget... holds it)
+  pose::PoseEstimator lost(s.scene.camera, s.scene.model, s.prior, o);
+  pose::PoseEstimator fresh(s.scene.camera, s.scene.model, s.prior, o);
+  std::int64_t last_valid_us = -1;
+  std::int64_t t = 0;
+  for (; t + kWindow_us <= 600'000; t += kWindow_us) {
+    if (lost.process(s.window(t, t + kWindow_us), t + kWindow_us).pose_valid) last_valid_us = t + kWindow_us;
+  }
+  ASSERT_GE(last_valid_us, 0);
+  for (int i = 0; i < o.lost_after_windows; ++i, t += kWindow_us) (void)lost.process({}, t + kWindow_us);
+  ASSERT_EQ(lost.status(), pose::TrackStatus::lost);
+  // The longest reach back of the attempts prepared on the windows ending in [from_us, to_us).
+  const auto longest_reach_us = [&](pose::PoseEstimator& est, std::int64_t from_us, std::int64_t to_us) {
+    std::int64_t longest_us = 0;
+    for (std::int64_t t1 = from_us; t1 < to_us; t1 += kWindow_us) {
+      pose::PoseEstimate now;
+      const auto job = est.prepare_initialisation(s.window(t1 - kWindow_us, t1), t1, now);
+      if (!job || job->events.empty()) continue;
+      longest_us = std::max(longest_us, t1 - job->events.front().t_us);
+      pose::InitOutcome failed;  // not run: every window prepares a new attempt
+      failed.t_us = t1;
+      failed.generation = job->generation;
+      (void)est.complete_initialisation(failed, EventSpan{}, t1);
+    }
+    return longest_us;
+  };
+  const std::int64_t expires_us = last_valid_us + o.init_long_accumulate_us;
+  const std::int64_t after_loss_us = longest_reach_us(lost, t + kWindow_us, expires_us - kWindow_us);
+  const std::int64_t expired_us = longest_reach_us(lost, expires_us + 2 * kWindow_us, kDuration_us);
+  const std::int64_t without_track_us = longest_reach_us(fresh, kWindow_us, kDuration_us);
+  std::cout << "longest accumulation: after the loss " << after_loss_us / 1000 << " ms, a second after the last good "
+            << "pose " << expired_us / 1000 << " ms, without a track " << without_track_us / 1000 << " ms\n";
+  EXPECT_GT(after_loss_us, 0);
+  EXPECT_LT(after_loss_us, o.init_accumulate_us);
+  EXPECT_GT(expired_us, o.init_accumulate_us);
+  EXPECT_GT(without_track_us, o.init_accumulate_us);
+}
+
 // A pose found on accumulated events (a sparse window: init_accumulate_us of the target's motion) is a blur of that
 // motion; it is polished on the events a tracking update at the window's time uses before it is published, so the
 // first pose is as close to the truth at its stamp (the window's middle) as a tracked one (issue 21: most wrong

@@ -83,6 +83,7 @@ void PoseEstimator::reset() {
   attempt_t_us_.reset();
   last_published_t_us_.reset();
   recent_.clear();
+  reinit_span_us_ = 0;
   track_ = TrackState{};
   filter_.reset();
   fused_ = {};
@@ -167,7 +168,17 @@ std::optional<InitJob> PoseEstimator::make_job(EventSpan window, std::int64_t t_
   // target's edges in that, or drowned in the noise) the newest init_long_target_events of the last
   // init_long_accumulate_us instead, whatever the window's size (windows sized by count, ELOPET-style: at a high
   // event rate the span stays short by itself).
+  // After a loss neither spans more than the model's image took to move track_max_blur_px at the last tracked speed
+  // (the tracking history's bound): a target lost while moving keeps moving, and 0.3-1 s of its events are a blur
+  // that fits other structure (decoy seed 7403: a re-initialised board 9-17 deg off, verified). Once the last good
+  // pose is older than the long accumulation, that speed says nothing of the events any more (the target may have
+  // stopped or slowed to a crawl): unbounded again.
+  const bool bounded =
+      track_.last && reinit_span_us_ > 0 &&
+      t_end_us - track_.last->t_us <= std::max(options_.init_long_accumulate_us, options_.init_accumulate_us);
+  const std::int64_t max_span_us = bounded ? reinit_span_us_ : std::numeric_limits<std::int64_t>::max();
   const auto newest = [&](std::size_t count, std::int64_t span_us) {
+    span_us = std::min(span_us, max_span_us);
     auto first = recent_.end() - static_cast<std::ptrdiff_t>(std::min(recent_.size(), count));
     while (first != recent_.end() && first->t_us < t_end_us - span_us) ++first;
     return EventSpan(first, recent_.end());
@@ -318,18 +329,28 @@ PoseEstimate PoseEstimator::complete_initialisation(const InitOutcome& outcome, 
   apply_initialisation(outcome, PoseEstimate{});
   std::uint64_t unhealthy = 0;
   const int slices = outcome.caught_up_slices + catch_up(track_, outcome.t_us, t_end_us, recent_, unhealthy);
+  note_speed();
   counters_.unhealthy_updates += unhealthy;
   if (track_.lost) set_status(TrackStatus::lost);
   ++counters_.windows;
   remember(window, t_end_us);
   PoseEstimate out =
       status_ == TrackStatus::tracking ? track(window, t_end_us, recent_) : held_estimate(window, t_end_us);
+  note_speed();
   if (out.note.empty() && !out.pose_valid) {
     out.note =
         fmt::format("initialisation succeeded, but the track was lost catching up the {} windows it took", slices);
   }
   out.initialised_now = out.pose_valid;
   return counted(std::move(out));
+}
+
+void PoseEstimator::note_speed() {
+  if (status_ == TrackStatus::holding) {
+    reinit_span_us_ = 0;
+  } else if (track_.previous && track_.last) {
+    reinit_span_us_ = history_span_us(track_);
+  }
 }
 
 void PoseEstimator::remember(EventSpan window, std::int64_t t_us) {
@@ -407,6 +428,7 @@ PoseEstimate PoseEstimator::process(EventSpan window, std::int64_t t_end_us, Eve
   if (!needs_initialisation()) {
     raw_ = raw;
     PoseEstimate out = track(window, t_end_us, recent_);
+    note_speed();
     raw_ = {};
     return counted(std::move(out));
   }

@@ -49,6 +49,9 @@ struct EstimatorOptions {
   /// little in 300 ms for LSD: no line at 0.01-0.02 m/s). Only attempts that search around a pose (the configured
   /// prior, or the last good pose after a loss) use it: without one, the clutter scenes accepted wrong board poses
   /// from the long accumulation (docs/history.md, "Sparse windows and slow targets": clutter wrong confident 2 -> 26).
+  /// After a loss both accumulations span at most what the model's image took to move track_max_blur_px at the last
+  /// tracked speed (a target lost while moving keeps moving: its long accumulation is a blur), until the last good
+  /// pose is older than the longer of the two accumulations.
   std::int64_t init_long_accumulate_us = 1'000'000;
   std::size_t init_long_target_events = 20'000;
   /// Tracking on a sparse window (slow target, most events filtered out, or the target's events drowned in noise)
@@ -315,6 +318,8 @@ class PoseEstimator {
                std::uint64_t& unhealthy) const;
   PoseEstimate counted(PoseEstimate out);
   void remember(EventSpan window, std::int64_t t_us);
+  /// After a tracking update (or a catch-up): reinit_span_us_ from the track's speed, 0 while holding.
+  void note_speed();
   [[nodiscard]] EventSpan tracking_events(EventSpan window, std::int64_t t_us, EventSpan history) const {
     return tracking_events(track_, window, t_us, history);
   }
@@ -356,6 +361,10 @@ class PoseEstimator {
   TrackStatus status_{TrackStatus::initialising};
   TrackState track_;
   std::vector<Event> recent_;  ///< the newest events (init_accumulate_us, at most a few thousand)
+  /// The span over which the model's image moved track_max_blur_px at the speed of the newest tracking update that
+  /// had one (history_span_us); 0 while none had, or once the target was held still. After a loss it bounds the
+  /// re-initialisation's accumulations (make_job) until the last good pose is older than the long accumulation.
+  std::int64_t reinit_span_us_{0};
   std::uint64_t generation_{0};
   std::optional<std::int64_t> attempt_t_us_;  ///< an attempt prepared and not completed: its window's time
   StandstillMonitor standstill_;              ///< active while holding (the windows' events)
