@@ -464,7 +464,9 @@ def section_figures(ctx: Ctx, results: dict, scenes: list[Scene], img_dir: Path,
 
 
 def git_describe() -> str:
-    r = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    # "-dirty" when the tree has uncommitted changes: the page then comes from code no commit names yet.
+    r = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty", "--abbrev=7"], capture_output=True,
+                       text=True)
     return r.stdout.strip() or "unknown"
 
 
