@@ -7,7 +7,8 @@
 # made with seed 41 (planar) / 42 (roadheader) instead of the page's 1 / 2, totalled apart (48 runs more; session 23:
 # 0 wrong confident of 4 106).
 # --set NN draws the hard scenes from seeds NN01-NN23 instead of 7401-7423 (default NN = 74; session 28 made a second
-# set with 75, never tuned on: check a change on a set it was not developed on; use another OUT_DIR per set).
+# set with 75, never tuned on: check a change on a set it was not developed on). The totals count every scene in
+# OUT_DIR, so each set has its own default (build/pose-seeds, build/pose-seeds-NN).
 #
 #   tools/pose_seeds.sh [--standard] [--set NN] [EVPIPE_BINARY] [OUT_DIR]
 set -euo pipefail
@@ -29,7 +30,7 @@ while [ $# -gt 0 ]; do
 done
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=${1:-$root/build/release/apps/evpipe/evpipe}
-out=${2:-$root/build/pose-seeds}
+out=${2:-$root/build/pose-seeds$([ "$set_nn" = 74 ] || echo "-$set_nn")}
 evsim=$root/build/release/apps/evsim/evsim
 eval_bin=$root/build/release/apps/evpose-eval/evpose-eval
 for b in "$bin" "$evsim" "$eval_bin"; do
