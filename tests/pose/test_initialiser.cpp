@@ -47,6 +47,13 @@ camera::PosePrior perturbed_prior(const Window& w, double offset_m, double offse
 
 // A prior off by exactly 10 cm and 20° (random directions), both targets, 0.6-1.0 m, without and with BA noise:
 // the pose comes out within 2 cm / 2° of the truth with no correspondences given.
+// Under the sanitizers (17 s under ASan with both seeds) seed 1 covers the code paths; the optimised builds check
+// the sweep's bounds on both.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr std::uint64_t kLastSweepSeed = 1;
+#else
+constexpr std::uint64_t kLastSweepSeed = 2;
+#endif
 TEST(Initialiser, FindsThePoseFromAFarPriorWithoutCorrespondences) {
   int runs = 0, good = 0;
   double worst_t = 0, worst_r = 0;
@@ -54,7 +61,7 @@ TEST(Initialiser, FindsThePoseFromAFarPriorWithoutCorrespondences) {
     const bool planar = file == "target-planar.yaml";
     for (const double dist : {0.6, 0.8, 1.0}) {
       for (const double noise : {0.0, 3.0}) {
-        for (std::uint64_t seed = 1; seed <= 2; ++seed) {
+        for (std::uint64_t seed = 1; seed <= kLastSweepSeed; ++seed) {
           WindowSpec spec;
           spec.model_file = file;
           spec.distance_m = dist;

@@ -212,6 +212,21 @@ struct Alignment {
   std::vector<std::pair<int, int>> matches;  // (detected line, model segment)
 };
 
+// Largest image displacement (pixels) of the model's segment ends between two poses; infinity when one is not in
+// front of the camera.
+double image_distance_px(const camera::CameraModel& cam, const camera::LineModel& model, const camera::Pose& a,
+                         const camera::Pose& b) {
+  double d = 0.0;
+  for (const auto& s : model.segments_m) {
+    for (const Vector3d& m : {s.a_m, s.b_m}) {
+      const Vector3d pa = a.apply(m), pb = b.apply(m);
+      if (pa.z() < kNear_m || pb.z() < kNear_m) return std::numeric_limits<double>::infinity();
+      d = std::max(d, (pinhole(cam, pa) - pinhole(cam, pb)).norm());
+    }
+  }
+  return d;
+}
+
 struct Scored {
   camera::Pose T;
   std::size_t explained{0};
@@ -219,6 +234,14 @@ struct Scored {
   bool verified{false};            // set for the refined candidates
   std::size_t supported_cells{0};  // of the verification
 };
+
+// The refined candidates' order: verified first, then by supported cells, then by explained events. Two distinct
+// verified poses are not decided by it (initialise_from_lines compares them on the events).
+bool ranked_before(const Scored& a, const Scored& b) {
+  if (a.verified != b.verified) return a.verified;
+  if (a.verified && a.supported_cells != b.supported_cells) return a.supported_cells > b.supported_cells;
+  return a.explained > b.explained;
+}
 
 class Search {
  public:
@@ -291,7 +314,8 @@ class Search {
   }
 
   // Phase B + C: RANSAC over minimal sets from the best alignments, then re-association and re-solving.
-  std::optional<Scored> solve(std::size_t& hypotheses) {
+  // The refined candidates, in the order of the events they explained before the refinement.
+  std::vector<Scored> solve(std::size_t& hypotheses) {
     // The best `alignments` over all starts, then each start's best not yet in (with many pseudo-priors the
     // right one's alignment must not be crowded out by high-scoring wrong ones of the others).
     std::vector<const Alignment*> all;
@@ -366,7 +390,7 @@ class Search {
         }
       }
     }
-    if (poses.empty()) return std::nullopt;
+    if (poses.empty()) return {};
     // Sorted through indices: libstdc++'s stable_sort buffer ignores over-alignment, and Scored holds an Eigen
     // quaternion that needs 32-byte alignment under AVX (-march=native crashed here).
     std::vector<std::size_t> order(poses.size());
@@ -379,13 +403,12 @@ class Search {
     poses = std::move(sorted);
     // The re-solve on all inliers (refine()): OPnL, then LM (line_refine.hpp) with a Huber loss so that one wrong
     // association cannot pull the pose.
-    std::optional<Scored> best;
+    std::vector<Scored> refined;
     for (std::size_t k = 0; k < std::min(poses.size(), o_.refine_candidates); ++k) {
       if (2 * poses[k].explained < poses[0].explained) break;  // far behind the best: not worth a re-solve
-      const Scored cur = refine(poses[k]);
-      if (!best || better(cur, *best)) best = cur;
+      refined.push_back(refine(poses[k]));
     }
-    return best;
+    return refined;
   }
 
   // Re-association and re-solve on all inliers, then the verification.
@@ -539,11 +562,6 @@ class Search {
   const camera::LineModel& model_;
   const std::optional<camera::PosePrior>& prior_;
   const InitialiserOptions& o_;
-  static bool better(const Scored& a, const Scored& b) {
-    if (a.verified != b.verified) return a.verified;
-    if (a.verified && a.supported_cells != b.supported_cells) return a.supported_cells > b.supported_cells;
-    return a.explained > b.explained;
-  }
 
   SupportCounter& support_;
   double line_support_;
@@ -611,21 +629,6 @@ std::vector<camera::Pose> pseudo_priors(const std::vector<Detected>& det, const 
 }  // namespace
 
 namespace {
-
-// Largest image displacement (pixels) of the model's segment ends between two poses; infinity when one is not in
-// front of the camera.
-double image_distance_px(const camera::CameraModel& cam, const camera::LineModel& model, const camera::Pose& a,
-                         const camera::Pose& b) {
-  double d = 0.0;
-  for (const auto& s : model.segments_m) {
-    for (const Vector3d& m : {s.a_m, s.b_m}) {
-      const Vector3d pa = a.apply(m), pb = b.apply(m);
-      if (pa.z() < kNear_m || pb.z() < kNear_m) return std::numeric_limits<double>::infinity();
-      d = std::max(d, (pinhole(cam, pa) - pinhole(cam, pb)).norm());
-    }
-  }
-  return d;
-}
 
 // The direct alignment with the prior (InitialiserOptions::direct_alignment), refined and verified by the tracker.
 InitResult initialise_by_alignment(EventSpan events, const camera::CameraModel& camera, const camera::LineModel& model,
@@ -787,10 +790,63 @@ InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& ca
   }
   res.pseudo_priors = starts.size();
   for (const camera::Pose& p : starts) search.align(p);
-  const std::optional<Scored> best = search.solve(res.hypotheses);
-  if (!best) {
+  const std::vector<Scored> refined = search.solve(res.hypotheses);
+  if (refined.empty()) {
     res.message = prior ? "no hypothesis gave a pose within the prior's tolerance" : "no hypothesis gave a pose";
     return res;
+  }
+  // Distinct verified candidates (refined to poses more than inlier_px apart in the image) are compared on the cells
+  // where they differ, as the model's symmetries below: the pose must explain the events clearly better than each
+  // other one (log-likelihood ratio at the symmetries' decision level), else the window is ambiguous. Ranking them
+  // by supported cells or explained events preferred a pose laid partly on a decoy's edges (it explains the decoy's
+  // events too) over the true pose, which the comparison favoured by 11.8 (docs/algorithms.md).
+  const double level = symmetry_decision_log_ratio(options.verification);
+  std::optional<Scored> best;
+  std::vector<const Scored*> verified;
+  for (const Scored& c : refined) {
+    if (!best || ranked_before(c, *best)) best = c;
+    if (!c.verified) continue;
+    const bool copy = std::any_of(verified.begin(), verified.end(), [&](const Scored* v) {
+      return image_distance_px(camera, model, v->T, c.T) <= options.inlier_px;
+    });
+    if (!copy) verified.push_back(&c);
+  }
+  if (verified.size() > 1) {
+    // Each candidate's least log-likelihood ratio against the others; a pair without a discriminating cell (the
+    // two images within the side strips everywhere: the same pose at the events' resolution) is no rival. Ties go
+    // to the ranking.
+    std::stable_sort(verified.begin(), verified.end(),
+                     [](const Scored* l, const Scored* r) { return ranked_before(*l, *r); });
+    const Scored* winner = nullptr;
+    const Scored* rival = nullptr;
+    double margin = -std::numeric_limits<double>::infinity();
+    for (const Scored* a : verified) {
+      double least = std::numeric_limits<double>::infinity();
+      const Scored* least_of = nullptr;
+      for (const Scored* b : verified) {
+        if (b == a) continue;
+        const PoseComparison cmp = compare_poses(events, camera, model, a->T, b->T, options.verification);
+        if (cmp.cells_a_only + cmp.cells_b_only == 0) continue;
+        if (cmp.log_ratio < least) {
+          least = cmp.log_ratio;
+          least_of = b;
+        }
+      }
+      if (least > margin) {
+        margin = least;
+        winner = a;
+        rival = least_of;
+      }
+    }
+    if (margin < level) {
+      res.message = fmt::format(
+          "{} distinct poses verify and the events do not tell the best apart from another (log-likelihood ratio "
+          "{:.1f}, need {:.1f}; {:.0f} mm / {:.1f} deg apart): ambiguous",
+          verified.size(), margin, level, 1000.0 * camera::translation_distance_m(winner->T, rival->T),
+          camera::rotation_angle_deg(winner->T, rival->T));
+      return res;
+    }
+    best = *winner;
   }
   res.explained_events = best->explained;
   res.support_share = static_cast<double>(best->explained) / static_cast<double>(events.size());
@@ -816,7 +872,6 @@ InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& ca
       const camera::Pose alt = chosen.T * options.verification.symmetries[k];
       if (!search.acceptable(alt)) continue;
       const PoseComparison cmp = compare_poses(events, camera, model, chosen.T, alt, options.verification);
-      const double level = symmetry_decision_log_ratio(options.verification);
       if (cmp.log_ratio >= level) continue;
       if (cmp.log_ratio > -level) {
         res.message = fmt::format(

@@ -71,7 +71,8 @@ struct InitialiserOptions {
   double early_stop_line_share = 0.9;
   double early_stop_min_line_fraction = 0.3;
   /// Poses (best support first) re-associated and re-solved on all their inlier correspondences (those that
-  /// explain at least half as many events as the best).
+  /// explain at least half as many events as the best). Two distinct verified ones are compared on the events
+  /// (initialise_pose).
   std::size_t refine_candidates = 4;
   /// Re-association at a pose: a detected line is an inlier of a model segment when both its endpoints lie
   /// within inlier_px of the segment's image line and the angle is below inlier_angle_deg.
