@@ -801,22 +801,24 @@ InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& ca
   // by supported cells or explained events preferred a pose laid partly on a decoy's edges (it explains the decoy's
   // events too) over the true pose, which the comparison favoured by 11.8 (docs/algorithms.md).
   const double level = symmetry_decision_log_ratio(options.verification);
-  std::optional<Scored> best;
+  // In the ranking's order (stable: equal ones in the refine's order), so that of two copies the better-ranked
+  // one represents its pose and ties go to the ranking.
+  std::vector<const Scored*> ranked;
+  for (const Scored& c : refined) ranked.push_back(&c);
+  std::stable_sort(ranked.begin(), ranked.end(),
+                   [](const Scored* l, const Scored* r) { return ranked_before(*l, *r); });
+  std::optional<Scored> best = *ranked.front();
   std::vector<const Scored*> verified;
-  for (const Scored& c : refined) {
-    if (!best || ranked_before(c, *best)) best = c;
-    if (!c.verified) continue;
+  for (const Scored* c : ranked) {
+    if (!c->verified) continue;
     const bool copy = std::any_of(verified.begin(), verified.end(), [&](const Scored* v) {
-      return image_distance_px(camera, model, v->T, c.T) <= options.inlier_px;
+      return image_distance_px(camera, model, v->T, c->T) <= options.inlier_px;
     });
-    if (!copy) verified.push_back(&c);
+    if (!copy) verified.push_back(c);
   }
   if (verified.size() > 1) {
     // Each candidate's least log-likelihood ratio against the others; a pair without a discriminating cell (the
-    // two images within the side strips everywhere: the same pose at the events' resolution) is no rival. Ties go
-    // to the ranking.
-    std::stable_sort(verified.begin(), verified.end(),
-                     [](const Scored* l, const Scored* r) { return ranked_before(*l, *r); });
+    // two images within the side strips everywhere: the same pose at the events' resolution) is no rival.
     const Scored* winner = nullptr;
     const Scored* rival = nullptr;
     double margin = -std::numeric_limits<double>::infinity();
