@@ -807,7 +807,7 @@ InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& ca
   for (const Scored& c : refined) ranked.push_back(&c);
   std::stable_sort(ranked.begin(), ranked.end(),
                    [](const Scored* l, const Scored* r) { return ranked_before(*l, *r); });
-  std::optional<Scored> best = *ranked.front();
+  const Scored* best = ranked.front();
   std::vector<const Scored*> verified;
   for (const Scored* c : ranked) {
     if (!c->verified) continue;
@@ -848,7 +848,7 @@ InitResult initialise_from_lines(EventSpan events, const camera::CameraModel& ca
           camera::rotation_angle_deg(winner->T, rival->T));
       return res;
     }
-    best = *winner;
+    best = winner;
   }
   res.explained_events = best->explained;
   res.support_share = static_cast<double>(best->explained) / static_cast<double>(events.size());
