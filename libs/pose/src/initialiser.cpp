@@ -579,6 +579,23 @@ Vector3d model_centre(const camera::LineModel& model) {
   return 0.5 * (lo + hi);
 }
 
+// The rotation taking direction a onto b: Eigen's Quaternion::FromTwoVectors, written out (the same arithmetic, so
+// the same quaternion) without its SVD for antiparallel directions, which cost 12 s of compile; those turn half
+// about an axis perpendicular to a.
+Eigen::Quaterniond rotation_onto(const Vector3d& a, const Vector3d& b) {
+  const Vector3d v0 = a.normalized(), v1 = b.normalized();
+  const double c = v1.dot(v0);
+  if (c < -1.0 + Eigen::NumTraits<double>::dummy_precision()) {
+    const Vector3d other = std::abs(v0.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY();
+    return Eigen::Quaterniond(Eigen::AngleAxisd(kPi, v0.cross(other).normalized()));
+  }
+  const double s = std::sqrt((1.0 + c) * 2.0);
+  Eigen::Quaterniond q;
+  q.vec() = v0.cross(v1) * (1.0 / s);
+  q.w() = s * 0.5;
+  return q;
+}
+
 // Without a prior: view directions on a Fibonacci sphere (the camera looks at the model's centre from each),
 // each with the depth at which the model's projected extent matches the detected lines' extent.
 std::vector<camera::Pose> pseudo_priors(const std::vector<Detected>& det, const camera::CameraModel& cam,
@@ -607,7 +624,7 @@ std::vector<camera::Pose> pseudo_priors(const std::vector<Detected>& det, const 
     const Vector3d view(r * std::cos(golden * k), r * std::sin(golden * k), z);  // model-frame direction to camera
     // R_cam_model maps -view onto the optical axis (the camera looks along -view); any roll: the 2D alignment
     // finds the in-plane rotation.
-    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(-view, Vector3d::UnitZ());
+    const Eigen::Quaterniond q = rotation_onto(-view, Vector3d::UnitZ());
     // Extent of the model seen from there (orthographic, at 1 m), vs the image extent.
     Vector2d plo = Vector2d::Constant(1e300), phi = Vector2d::Constant(-1e300);
     for (const auto& s : model.segments_m) {

@@ -130,9 +130,14 @@ class Occupancy {
       }
     }
   }
+  // The nearest pixel is std::lround's (half away from zero), written inline: the libm call was a quarter of an
+  // alignment's time. Inside (-0.5, n - 0.5) adding the largest double below 0.5 and truncating rounds exactly as
+  // lround does (GCC's own inline expansion of lround); outside, and for NaN, lround's pixel is off the grid too.
   [[nodiscard]] double c_near(const Vector2d& p, int bin) const {
-    const long x = std::lround(p.x() - x0_), y = std::lround(p.y() - y0_);
-    if (x < 0 || y < 0 || x >= w_ || y >= h_) return 0.0;
+    constexpr double kJustBelowHalf = 0.49999999999999994;  // std::nextafter(0.5, 0.0)
+    const double fx = p.x() - x0_, fy = p.y() - y0_;
+    if (!(fx > -0.5 && fy > -0.5 && fx < w_ - 0.5 && fy < h_ - 0.5)) return 0.0;
+    const auto x = static_cast<long>(fx + kJustBelowHalf), y = static_cast<long>(fy + kJustBelowHalf);
     return c_[static_cast<std::size_t>(bin)]
              [static_cast<std::size_t>(y) * static_cast<std::size_t>(w_) + static_cast<std::size_t>(x)];
   }

@@ -6,9 +6,9 @@
 
 #include "evpipe/pose/mm_estimator.hpp"
 #include "evpipe/pose/robust_loss.hpp"
+#include "pose_spread.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include <fmt/format.h>
@@ -572,13 +572,12 @@ TrackUpdate track_from(EventSpan events, const GatheredEvents& gathered, const U
   Vector6d scale;
   scale << 1.0, 1.0, 1.0, depth, depth, depth;
   const Matrix6d Hs = scale.asDiagonal() * H * scale.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Matrix6d> es(Hs);
-  const double ev_min = es.eigenvalues()(0), ev_max = es.eigenvalues()(5);
+  const detail::SymmetricEigen6 es = detail::symmetric_eigen(Hs);
+  const double ev_min = es.values(0), ev_max = es.values(5);
   up.condition = ev_min > 0.0 ? ev_max / ev_min : std::numeric_limits<double>::infinity();
   if (ev_min > 0.0 && std::isfinite(up.condition)) {
     // sigma² (J^T W J)^-1, from the eigen-decomposition of the scaled matrix (scaled back).
-    const Matrix6d Hs_inv =
-        es.eigenvectors() * es.eigenvalues().cwiseInverse().asDiagonal() * es.eigenvectors().transpose();
+    const Matrix6d Hs_inv = es.vectors * es.values.cwiseInverse().asDiagonal() * es.vectors.transpose();
     // One measurement per occupied cell along the segments, not per event (tracker.hpp, covariance_cell_px).
     std::vector<std::vector<bool>> occupied(segs.size());
     for (std::size_t j = 0; j < r.size(); ++j) {
