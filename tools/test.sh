@@ -4,7 +4,7 @@
 # more when optimised in both, the threaded ones also under TSan), a bounded fuzzing run of every reader, and the
 # Python cross-checks of the AEDAT 4.0 writer and of the dv-processing-compatible denoisers (skipped with a message
 # when the PyPI packages cannot be installed).
-# Environment: EVPIPE_FUZZ_SECONDS (default 20 per reader), EVPIPE_SKIP_ASAN=1 (every test then runs optimised),
+# Environment: EVPIPE_FUZZ_SECONDS (default 10 per reader), EVPIPE_SKIP_ASAN=1 (every test then runs optimised),
 # EVPIPE_SKIP_TSAN=1, EVPIPE_SKIP_FUZZ=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,7 +22,8 @@ bash tools/check_format.sh
 # kinds of tests; every test runs under ASan + UBSan below except the first kind (running all ~740 twice, and their
 # -O2 compile, were a third of CI's time; the other test sources are compiled at -O0 with -Werror there):
 # - the accuracy tests in ci_only_tests, which took 17-156 s each under the sanitizers and exercise the code paths of
-#   the sanitized tests (the same estimator and binaries, on longer scenes or more seeds): optimised only.
+#   the sanitized tests (the same estimator and binaries, on longer scenes or more seeds; NoTargetInView: an
+#   initialisation attempt in each of the sample's windows, 34 s under ASan): optimised only.
 #   HoldsAStillTargetAndResumesWithoutReinitialising, TracksFromOneCmTwoDegrees and the FirstInitialisation scenes
 #   stay under ASan for the estimator and the initialiser;
 # - tests that check more in an optimised build (their source tests __SANITIZE_ADDRESS__ / __SANITIZE_THREAD__: the
@@ -33,6 +34,7 @@ bash tools/check_format.sh
 # are not run), so those tests run twice; every test runs at least once.
 ci_only_tests=(
   EvpipeClutter.WithoutAPriorLinesBesideTheBoardGiveNoConfidentWrongPose
+  EvpipePoseErrors.NoTargetInViewGivesNoPosesAndSaysWhy
   EvpipeDefaults.AdaptiveThresholdKeepsTheSampleTracked
   PoseEstimator.TracksASlowTargetUnderNoise
   PoseEstimator.ADriftingTargetIsNotHeldOffItsPose
@@ -115,8 +117,8 @@ if [ "${EVPIPE_SKIP_TSAN:-0}" != 1 ]; then
 fi
 
 if [ "${EVPIPE_SKIP_FUZZ:-0}" != 1 ]; then
-  stamp "fuzzing every reader (${EVPIPE_FUZZ_SECONDS:-20} s each)"
-  bash tools/run_fuzzers.sh "${EVPIPE_FUZZ_SECONDS:-20}"
+  stamp "fuzzing every reader (${EVPIPE_FUZZ_SECONDS:-10} s each)"
+  bash tools/run_fuzzers.sh "${EVPIPE_FUZZ_SECONDS:-10}"
 fi
 
 # A Python cross-check: exit 77 means "skipped" (PyPI unreachable; the script says why), anything else non-zero fails.

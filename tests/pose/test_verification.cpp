@@ -229,6 +229,9 @@ constexpr double kAlignmentReads = pose::PriorAlignmentOptions{}.max_level0_read
 #endif
 
 TEST_P(RealBoard, NoTrackingPoseIsWrongWithOrWithoutPrior) {
+  if (!kWholeSequences && std::string(GetParam()) == "seq_0001") {
+    GTEST_SKIP() << "optimised builds only: under the sanitizers seq_0003's first windows take the same code paths";
+  }
   const std::string rel = std::string("davis240-evbench-checkerboard/") + GetParam();
   EVPIPE_REQUIRE_REAL(dir, rel);
   const auto cam = camera::load_camera(dir + "/camera.yaml");
