@@ -22,8 +22,9 @@ bash tools/check_format.sh
 # kinds of tests; every test runs under ASan + UBSan below except the first kind (running all ~740 twice, and their
 # -O2 compile, were a third of CI's time; the other test sources are compiled at -O0 with -Werror there):
 # - the accuracy tests in ci_only_tests, which took 17-156 s each under the sanitizers and exercise the code paths of
-#   the sanitized tests (the same estimator and binaries, on longer scenes or more seeds; NoTargetInView: an
-#   initialisation attempt in each of the sample's windows, 34 s under ASan): optimised only.
+#   the sanitized tests (the same estimator and binaries, on longer scenes or more seeds): optimised only. Also
+#   NoTargetInView (no target: an attempt refused in each of the sample's windows, 34 s under ASan), whose refusals
+#   the PoseVerify and PriorAlignment tests and RealBoard seq_0003's first windows take under ASan.
 #   HoldsAStillTargetAndResumesWithoutReinitialising, TracksFromOneCmTwoDegrees and the FirstInitialisation scenes
 #   stay under ASan for the estimator and the initialiser;
 # - tests that check more in an optimised build (their source tests __SANITIZE_ADDRESS__ / __SANITIZE_THREAD__: the

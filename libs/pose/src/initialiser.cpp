@@ -580,8 +580,9 @@ Vector3d model_centre(const camera::LineModel& model) {
 }
 
 // The rotation taking direction a onto b: Eigen's Quaternion::FromTwoVectors, written out (the same arithmetic, so
-// the same quaternion) without its SVD for antiparallel directions, which cost 12 s of compile; those turn half
-// about an axis perpendicular to a.
+// the same quaternion) without its SVD branch for directions within 1e-12 of opposite, which cost 12 s of compile.
+// There this turns half about an axis perpendicular to a (off b by up to ~1e-6 rad; pseudo_priors' views never
+// come near: their cosine with the axis stays above -(1 - 1/samples)).
 Eigen::Quaterniond rotation_onto(const Vector3d& a, const Vector3d& b) {
   const Vector3d v0 = a.normalized(), v1 = b.normalized();
   const double c = v1.dot(v0);
