@@ -196,16 +196,25 @@ TEST_F(SequentialRunner, GivesTheThreadedGraphsPosesOnTheBundledSample) {
   expect_identical(s, "roadheader-sample", 50);
 }
 
-// The optimised build (tools/test.sh: ci_test_targets) runs all three scenes; ASan checks the memory on the first
-// (the other two take the same paths); TSan none: the threaded graph it checks is the bundled sample's above, and
-// the three scenes took 78 s of CI under it.
+// A test's size in this build: under ThreadSanitizer, under AddressSanitizer, optimised (tools/test.sh runs
+// test_stages in all three: it is in ci_test_targets).
+namespace {
+template <typename T>
+constexpr T for_this_build([[maybe_unused]] T tsan, [[maybe_unused]] T asan, [[maybe_unused]] T optimised) {
 #if defined(__SANITIZE_THREAD__)
-constexpr int kScenes = 0;
+  return tsan;
 #elif defined(__SANITIZE_ADDRESS__)
-constexpr int kScenes = 1;
+  return asan;
 #else
-constexpr int kScenes = 3;
+  return optimised;
 #endif
+}
+}  // namespace
+
+// The optimised build runs all three scenes; ASan checks the memory on the first (the other two take the same
+// paths); TSan none: the threaded graph it checks is the bundled sample's above, and the three scenes took 78 s of
+// CI under it.
+constexpr int kScenes = for_this_build(0, 1, 3);
 
 TEST_F(SequentialRunner, GivesTheThreadedGraphsPosesOnThreeSyntheticScenes) {
   if (kScenes == 0) GTEST_SKIP() << "under TSan the bundled sample's test runs the threaded graph";
@@ -223,13 +232,7 @@ TEST_F(SequentialRunner, ThePoseStageWithItsInitialisationWorkerTracks) {
   // The windows pass in (scaled) real time while the attempt runs: ThreadSanitizer slows the attempt ~10x and
   // AddressSanitizer ~3x, so their builds replay slower, leaving the worker the same share of the 1.5 s scene (>= 10
   // windows tracked after it; 46 of 50 in the release build, 8-9 under ASan at full speed since session 19).
-#if defined(__SANITIZE_THREAD__)
-  constexpr double kSpeed = 0.1;
-#elif defined(__SANITIZE_ADDRESS__)
-  constexpr double kSpeed = 0.3;
-#else
-  constexpr double kSpeed = 1.0;
-#endif
+  constexpr double kSpeed = for_this_build(0.1, 0.3, 1.0);
   const auto with_worker = run(s, false, true, kSpeed);
   EXPECT_GE(with_worker.init_attempts, 1u);
   EXPECT_GE(with_worker.valid, 10u);
