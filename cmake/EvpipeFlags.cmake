@@ -39,14 +39,69 @@ if(EVPIPE_TSAN)
   add_link_options(-fsanitize=thread)
 endif()
 
-# Declares an evpipe library: libs/<name>/{include,src}, target evpipe_<name>, alias evpipe::<name>.
+# Declares an evpipe library: libs/<name>/{include,src}, target evpipe_<name>, alias evpipe::<name>. NUMERICAL: the
+# library builds optimised under the sanitizers (evpipe_optimise_under_sanitizers, below).
 function(evpipe_add_library name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "NUMERICAL" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
   add_library(evpipe_${name} ${ARG_SOURCES})
   add_library(evpipe::${name} ALIAS evpipe_${name})
   target_include_directories(evpipe_${name} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
   target_link_libraries(evpipe_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   evpipe_set_flags(evpipe_${name})
+  if(ARG_NUMERICAL)
+    evpipe_optimise_under_sanitizers(evpipe_${name})
+    evpipe_use_pch(evpipe_${name} NUMERICAL)
+  else()
+    evpipe_use_pch(evpipe_${name})
+  endif()
+endfunction()
+
+# Precompiled headers of the libraries and programs (CMake's REUSE_FROM; the tests have their own, see
+# tests/CMakeLists.txt): Eigen, fmt and the common standard headers took ~1 s to parse in each of the ~110 sources,
+# once per build preset. GCC uses a precompiled header only in a source built with the same flags and the same
+# macros where the headers read them: every user gets -pthread as the header does (it defines _REENTRANT, which the
+# standard headers read), and under the sanitizers the numerical libraries, built with other flags, have a header
+# of their own. A source GCC refuses the header in is compiled as without it (it includes the same headers), only
+# slower. The fuzz build (clang, a dozen sources) goes without.
+set(EVPIPE_PCH_HEADERS <Eigen/Core> <Eigen/Geometry> <fmt/format.h> <algorithm> <array> <chrono> <cmath> <cstdint>
+                       <functional> <limits> <memory> <optional> <span> <stdexcept> <string> <string_view> <utility>
+                       <vector>)
+
+# Declares the targets that build the headers (evpipe_pch, and evpipe_numerical_pch under the sanitizers); called
+# once Eigen and fmt are found.
+function(evpipe_declare_pch)
+  if(EVPIPE_FUZZ)
+    return()
+  endif()
+  set(names evpipe_pch)
+  if(EVPIPE_SANITIZE OR EVPIPE_TSAN)
+    list(APPEND names evpipe_numerical_pch)
+  endif()
+  foreach(name IN LISTS names)
+    add_library(${name} OBJECT ${PROJECT_SOURCE_DIR}/cmake/pch.cpp)
+    target_link_libraries(${name} PRIVATE Eigen3::Eigen fmt::fmt)
+    target_compile_options(${name} PRIVATE -pthread)
+    evpipe_set_flags(${name})
+    target_precompile_headers(${name} PRIVATE ${EVPIPE_PCH_HEADERS})
+  endforeach()
+  if(TARGET evpipe_numerical_pch)
+    evpipe_optimise_under_sanitizers(evpipe_numerical_pch)
+  endif()
+endfunction()
+
+# evpipe_use_pch(<target> [NUMERICAL]): <target>'s sources use the precompiled header of its flags.
+function(evpipe_use_pch target)
+  if(EVPIPE_FUZZ)
+    return()
+  endif()
+  cmake_parse_arguments(ARG "NUMERICAL" "" "" ${ARGN})
+  set(pch evpipe_pch)
+  if(ARG_NUMERICAL AND TARGET evpipe_numerical_pch)
+    set(pch evpipe_numerical_pch)
+  endif()
+  target_link_libraries(${target} PRIVATE Eigen3::Eigen fmt::fmt)
+  target_compile_options(${target} PRIVATE -pthread)
+  target_precompile_headers(${target} REUSE_FROM ${pch})
 endfunction()
 
 # The numerical libraries build at -O2 in the sanitizer builds (Debug): at -O0 their Eigen expressions and

@@ -1,0 +1,1 @@
+// The source of the precompiled-header targets (cmake/EvpipeFlags.cmake): the header is the product.
