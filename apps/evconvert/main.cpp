@@ -3,11 +3,10 @@
 // in input order (out-of-order timestamps are kept and counted), labels are kept for text output.
 // Exit status: 0 success, 1 input/output error, 2 usage error.
 
-#include <CLI/CLI.hpp>
-
 #include <fmt/format.h>
 #include <cstdio>
 
+#include "evpipe/cli/cli.hpp"
 #include "evpipe/core/error.hpp"
 #include "evpipe/io/reader.hpp"
 #include "evpipe/io/writer.hpp"
@@ -17,18 +16,13 @@ int main(int argc, char** argv) {
   std::string out_path;
   std::string compression = "lz4";
   bool quiet = false;
-  CLI::App app{"evconvert: convert event recordings (AEDAT 2.0/3.1/4.0, text) to AEDAT 4.0, AEDAT 3.1 or text"};
+  evpipe::cli::App app{"evconvert: convert event recordings (AEDAT 2.0/3.1/4.0, text) to AEDAT 4.0, AEDAT 3.1 or text"};
   app.add_option("IN", in_path, "Input recording (format detected from content)")->required();
   app.add_option("OUT", out_path, "Output file: .aedat4, .aedat3 or .txt")->required();
   app.add_option("--compression", compression, "AEDAT 4.0 packet compression")
-      ->check(CLI::IsMember({"lz4", "zstd", "none"}));
+      ->check(evpipe::cli::is_member({"lz4", "zstd", "none"}));
   app.add_flag("-q,--quiet", quiet, "No summary line");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const auto status = app.parse(argc, argv)) return *status;
 
   evpipe::io::Format out_format{};
   try {

@@ -10,7 +10,6 @@
 // 2 usage error (command line, unknown filter, unknown or bad parameter).
 
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
@@ -26,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "evpipe/cli/cli.hpp"
 #include "evpipe/core/error.hpp"
 #include "evpipe/core/file.hpp"
 #include "evpipe/core/filter_chain.hpp"
@@ -397,7 +397,7 @@ int run(const Options& o) {
 
 int main(int argc, char** argv) {
   Options o;
-  CLI::App app{
+  evpipe::cli::App app{
       "evdenoise: remove noise events from an event recording (AEDAT 2.0/3.1/4.0 or text in; "
       ".aedat4 or .txt out)"};
   app.add_option("IN", o.in, "Input recording (format detected from content)");
@@ -406,22 +406,17 @@ int main(int argc, char** argv) {
   app.add_option("--set", o.sets, "Filter parameter KEY=VALUE, or NAME.KEY=VALUE in a chain (repeatable)")
       ->expected(1)
       ->allow_extra_args(false)
-      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+      ->multi_option_policy(evpipe::cli::MultiOptionPolicy::take_all);
   app.add_flag("--metrics", o.metrics, "Print one JSON object of metrics to stdout (docs/evdenoise.md)");
   app.add_option("--png", o.png, "Also write a grid of 30 ms frames before (top) / after (bottom) filtering");
   app.add_flag("--list-filters", o.list_filters, "List every filter with its parameters and defaults, then exit");
   app.add_flag("-q,--quiet", o.quiet, "No summary line");
   app.add_option("--batch-events", o.batch_events, "Events per read batch (decisions do not depend on it)")
-      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 24));
+      ->check(evpipe::cli::range(std::size_t{1}, std::size_t{1} << 24));
   app.add_option("--threads", o.threads,
                  "Threads one 30 ms block of the curvature filter is spread over (same decisions for any value)")
-      ->check(CLI::Range(1, 64));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+      ->check(evpipe::cli::range(1, 64));
+  if (const auto status = app.parse(argc, argv)) return *status;
   try {
     if (o.list_filters) {
       list_filters();

@@ -9,6 +9,7 @@
 // --log that is not an LCM log, or corrupt or truncated) or --count not reached before --timeout, 2 usage error
 // (an invalid --url).
 
+#include "evpipe/cli/cli.hpp"
 #include "evpipe/core/file.hpp"
 #include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/lcm_capture.hpp"
@@ -17,7 +18,6 @@
 #include "evpipe/transport/text.hpp"
 
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
 #include <csignal>
 #include <cstdio>
@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
   std::size_t count = 0;
   double timeout_s = 0.0;
   bool text = false;
-  CLI::App app{"evpipe-lcm-echo: print evpipe LCM messages (pose_t, stats_t) as JSON lines or text"};
+  evpipe::cli::App app{"evpipe-lcm-echo: print evpipe LCM messages (pose_t, stats_t) as JSON lines or text"};
   app.add_option("--url", url, "LCM URL (default: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0)");
   app.add_option("--channel", channel, "Channel name or regex to subscribe to")->capture_default_str();
   app.add_option("--log", log_path, "Read this LCM log file (lcm-logger) instead of listening");
@@ -68,14 +68,9 @@ int main(int argc, char** argv) {
   app.add_option("--timeout", timeout_s,
                  "Stop after this many seconds (0 = none); with --count, not reaching the "
                  "count in time is an error")
-      ->check(CLI::NonNegativeNumber);
+      ->check(evpipe::cli::non_negative_number());
   app.add_flag("--text", text, "Human-readable lines instead of JSON");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const auto status = app.parse(argc, argv)) return *status;
 
   std::size_t printed = 0;
   auto print = [&](const evpipe::transport::ReceivedMessage& m) {

@@ -14,7 +14,6 @@
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
-#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <csignal>
@@ -28,6 +27,7 @@
 #include <set>
 #include <string>
 
+#include "evpipe/cli/cli.hpp"
 #include "evpipe/transport/codec.hpp"
 #include "evpipe/transport/lcm_capture.hpp"
 #include "evpipe/transport/lcm_publisher.hpp"
@@ -301,26 +301,23 @@ int run(const Cli& cli) {
 
 int main(int argc, char** argv) {
   Cli cli;
-  CLI::App app{"evpipe-view: watch evpipe's preview (evpipe --preview) live from any LCM URL"};
+  evpipe::cli::App app{"evpipe-view: watch evpipe's preview (evpipe --preview) live from any LCM URL"};
   app.add_option("--lcm-url,--url", cli.url,
                  "LCM URL (default: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0)");
   app.add_option("--channel", cli.channel, "Preview channel (evpipe's lcm.preview_channel)")->capture_default_str();
-  app.add_option("--zoom", cli.zoom, "Screen pixels per sensor pixel")->check(CLI::Range(1, 8))->capture_default_str();
+  app.add_option("--zoom", cli.zoom, "Screen pixels per sensor pixel")
+      ->check(evpipe::cli::range(1, 8))
+      ->capture_default_str();
   app.add_option("--screenshot", cli.screenshot, "Save the last shown picture to this PNG at the end");
   app.add_option("--frames", cli.frames, "Stop after this many previews (0 = run until q / Ctrl-C)");
   app.add_option("--timeout", cli.timeout_s,
                  "Give up when no preview came for this many seconds (default: 10 with --frames, else wait)");
   app.add_option("--video", cli.video, "Write every preview received to this video (.mp4 or .avi)");
   app.add_option("--video-fps", cli.video_fps, "Frame rate of --video (default: 10, the preview rate)")
-      ->check(CLI::PositiveNumber);
+      ->check(evpipe::cli::positive_number());
   app.add_option("--png-dir", cli.png_dir, "Folder for the PNGs the s key saves (default: .)");
   app.add_flag("--headless", cli.headless, "No window (with --screenshot or --video)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const auto status = app.parse(argc, argv)) return *status;
   if (cli.screenshot.empty() && cli.frames == 0 && cli.headless && cli.video.empty()) {
     std::fprintf(stderr, "evpipe-view: --headless needs --screenshot or --video\n");
     return 2;

@@ -13,7 +13,6 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <array>
@@ -31,6 +30,7 @@
 #include "evpipe/camera/error.hpp"
 #include "evpipe/camera/line_model.hpp"
 #include "evpipe/camera/trajectory.hpp"
+#include "evpipe/cli/cli.hpp"
 #include "evpipe/config/run_config.hpp"
 #include "evpipe/core/error.hpp"
 #include "evpipe/core/file.hpp"
@@ -549,12 +549,12 @@ int main(int argc, char** argv) {
   spdlog::set_default_logger(evpipe::service::make_logger("evpipe"));
 
   Cli cli;
-  CLI::App app{"evpipe: DAVIS346 event-camera pipeline (replay a recording, or read the camera over USB)"};
+  evpipe::cli::App app{"evpipe: DAVIS346 event-camera pipeline (replay a recording, or read the camera over USB)"};
   // "evpipe <version>" and the libcaer it was built with ("libcaer: 3.3.15" or "libcaer: stub: no camera support").
   app.set_version_flag("--version", std::string("evpipe " EVPIPE_VERSION "\n") + evpipe::app::libcaer_version_line());
   app.add_option("--replay", cli.replay, "Replay a recording (AEDAT 2.0/3.1/4.0 or text) instead of the camera");
   app.add_option("--config", cli.config_path, "Run configuration (YAML); command-line options override it")
-      ->check(CLI::ExistingFile);
+      ->check(evpipe::cli::existing_file());
   app.add_option("--speed", cli.speed, "Replay pace: 1 = real time (default), 2 = twice as fast, max = unpaced");
   app.add_option("--camera", cli.camera, "Camera calibration YAML (pose stage)");
   app.add_option("--model", cli.model, "Line model of the target, YAML or DXF (pose stage)");
@@ -578,20 +578,15 @@ int main(int argc, char** argv) {
       evpipe::config::kMinSpeed, evpipe::config::kMaxSpeed));
   app.add_flag("--preview", cli.preview, "Publish a preview for evpipe-view on EVPIPE_PREVIEW (lcm.preview)");
   app.add_option("--preview-hz", cli.preview_hz, "Previews per second (implies --preview; lcm.preview_hz, default 10)")
-      ->check(CLI::Range(0.1, 30.0));
+      ->check(evpipe::cli::range(0.1, 30.0));
   app.add_option("--video", cli.video,
                  "Write the preview of every window to this video (.mp4: MPEG-4 via FFmpeg; .avi: Motion JPEG)");
   app.add_option("--video-fps", cli.video_fps,
                  "Video frame rate in [0.1, 1000] (default: sensor time, 1 / window.hop_us)")
-      ->check(CLI::Range(0.1, 1000.0));
+      ->check(evpipe::cli::range(0.1, 1000.0));
   app.add_option("--png-every", cli.png_every, "Write every Nth window's preview as PNG (to --png-dir)")
-      ->check(CLI::PositiveNumber);
+      ->check(evpipe::cli::positive_number());
   app.add_option("--png-dir", cli.png_dir, "Folder for --png-every stills (default: .)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const auto status = app.parse(argc, argv)) return *status;
   return run(cli);
 }

@@ -9,7 +9,6 @@
 // 2 usage error.
 
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
 #include <cstdint>
 #include <cstdio>
@@ -23,6 +22,7 @@
 #include "evpipe/camera/error.hpp"
 #include "evpipe/camera/line_model.hpp"
 #include "evpipe/camera/trajectory.hpp"
+#include "evpipe/cli/cli.hpp"
 #include "evpipe/core/file.hpp"
 #include "evpipe/core/json_quote.hpp"
 #include "evpipe/metrics/trajectory.hpp"
@@ -293,7 +293,7 @@ int run(const Options& o) {
 
 int main(int argc, char** argv) {
   Options o;
-  CLI::App app{
+  evpipe::cli::App app{
       "evpose-eval: accuracy of an estimated trajectory against ground truth (ATE, per-axis and rotation error, "
       "coverage); both are trajectory CSVs of T_cam_model, compared without alignment"};
   app.add_option("ESTIMATE", o.estimate, "Estimated poses (evpipe --poses-out)")->required();
@@ -303,8 +303,9 @@ int main(int argc, char** argv) {
   app.add_flag("--only-tracking,--only-valid", o.only_tracking,
                "Evaluate only rows whose status column is 'tracking' or 'holding' (the valid poses)");
   app.add_option("--wrong-max-mm", o.wrong_max_mm, "A tracking/holding pose further off than this is wrong (mm)")
-      ->check(CLI::PositiveNumber);
-  app.add_option("--wrong-max-deg", o.wrong_max_deg, "... or turned more than this (deg)")->check(CLI::PositiveNumber);
+      ->check(evpipe::cli::positive_number());
+  app.add_option("--wrong-max-deg", o.wrong_max_deg, "... or turned more than this (deg)")
+      ->check(evpipe::cli::positive_number());
   app.add_option("--symmetry", o.symmetry,
                  "Score against each equivalent truth, keep the best: 'planar-rect' (a board; needs --model) or a "
                  "trajectory CSV of model-frame transforms");
@@ -315,13 +316,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-gap-us", o.max_gap_us,
                  "Time coverage: consecutive poses at most this far apart cover the time between them (default "
                  "100000)")
-      ->check(CLI::Range(std::int64_t{0}, std::int64_t{3'600'000'000}));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+      ->check(evpipe::cli::range(std::int64_t{0}, std::int64_t{3'600'000'000}));
+  if (const auto status = app.parse(argc, argv)) return *status;
   try {
     return run(o);
   } catch (const std::exception& e) {

@@ -10,7 +10,6 @@
 // Exit status: 0 success, 1 input/output error, 2 usage error.
 
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -32,6 +31,7 @@
 #include "evpipe/camera/prior.hpp"
 #include "evpipe/camera/trajectory.hpp"
 #include "evpipe/camera/yaml_writer.hpp"
+#include "evpipe/cli/cli.hpp"
 #include "evpipe/core/file.hpp"
 #include "evpipe/io/writer.hpp"
 #include "evpipe/sim/distractors.hpp"
@@ -636,19 +636,19 @@ int run(Config& c) {
 int main(int argc, char** argv) {
   Config c;
   for (int i = 1; i < argc; ++i) c.command.emplace_back(argv[i]);
-  CLI::App app{
+  evpipe::cli::App app{
       "evsim: synthetic DAVIS346 event recordings with ground truth (docs/simulation.md). Modes: a 2D scene "
       "(--scene, default), the paper's pure-noise protocol (--pure-noise N), or a 3D line-model target "
       "(--camera + --model)."};
   app.set_version_flag("--version", std::string("evsim ") + EVSIM_VERSION);
-  app.option_defaults()->always_capture_default();  // --help shows every default
+  app.always_capture_default();  // --help shows every default
   app.add_option("--out", c.out, "Output recording (.aedat4, .aedat3 or .txt); other files go beside it")->required();
   app.add_option("--labels", c.labels_out, "Also write labelled text 't x y p label' (1 signal, 0 noise) here");
   app.add_option("--png", c.png_out, "Also write a 30 ms event frame (white, red ON, blue OFF, 2x) here");
   app.add_option("--png-t-ms", c.png_t_ms,
                  "Start of the --png window, ms after the recording's start "
                  "(default: the window centred on the middle)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(evpipe::cli::non_negative_number())
       ->default_str("middle");
   app.add_flag("--png-model", c.png_model, "3D: draw the model at the ground-truth pose in grey under the events");
   app.add_flag("!--no-manifest", c.manifest, "Do not write <stem>.manifest.yaml");
@@ -656,15 +656,16 @@ int main(int argc, char** argv) {
   auto* t0 = app.add_option("--t0-us", c.t0_us, "Timestamp of the start (not with --trajectory: its own times)");
   auto* dur = app.add_option("--duration-ms", c.duration_ms,
                              "Length of the recording (with --trajectory: cut the trajectory to this)")
-                  ->check(CLI::PositiveNumber);
+                  ->check(evpipe::cli::positive_number());
   app.add_option("--noise-hz", c.noise.rate_hz_per_pixel, "Background activity per pixel (Hz)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(evpipe::cli::non_negative_number());
   app.add_option("--noise-on-share", c.noise.on_share, "Share of noise events that are ON")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(evpipe::cli::range(0.0, 1.0));
   app.add_option("--leak-hz", c.noise.leak_rate_hz_per_pixel, "Leak events per pixel (Hz, ON only)")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--hot-pixels", c.noise.hot_pixels, "Number of hot pixels")->check(CLI::NonNegativeNumber);
-  app.add_option("--hot-rate-hz", c.noise.hot_rate_hz, "Rate of each hot pixel (Hz)")->check(CLI::NonNegativeNumber);
+      ->check(evpipe::cli::non_negative_number());
+  app.add_option("--hot-pixels", c.noise.hot_pixels, "Number of hot pixels")->check(evpipe::cli::non_negative_number());
+  app.add_option("--hot-rate-hz", c.noise.hot_rate_hz, "Rate of each hot pixel (Hz)")
+      ->check(evpipe::cli::non_negative_number());
   auto* pure =
       app.add_option("--pure-noise", c.pure_noise, "Paper protocol: exactly N noise events in 30 ms, no scene");
   // 2D
@@ -672,7 +673,7 @@ int main(int argc, char** argv) {
   // Bounded: the events grow with the speed (x1 is 60-240 px/s; x100 is beyond any sensor's pixel rate), and 1e300
   // generated events for ever.
   auto* speed =
-      app.add_option("--speed", c.speed, "2D scene speed factor, in (0, 100]")->check(CLI::Range(1e-6, 100.0));
+      app.add_option("--speed", c.speed, "2D scene speed factor, in (0, 100]")->check(evpipe::cli::range(1e-6, 100.0));
   // 3D
   auto* cam = app.add_option("--camera", c.camera_file, "3D: camera calibration (evpipe YAML or OpenCV FileStorage)");
   auto* model = app.add_option("--model", c.model_file, "3D: line model of the target (YAML or DXF)");
@@ -684,21 +685,21 @@ int main(int argc, char** argv) {
   auto* az = app.add_option("--view-azimuth-deg", c.view_azimuth_deg,
                             "3D, z-up models: view from this azimuth (0 front, 90 left side)");
   auto* el = app.add_option("--view-elevation-deg", c.view_elevation_deg, "3D, z-up models: view from this elevation")
-                 ->check(CLI::Range(-89.0, 89.0));
-  std::vector<CLI::Option*> motion_opts = {dist, orient, az, el};
+                 ->check(evpipe::cli::range(-89.0, 89.0));
+  std::vector<evpipe::cli::Option*> motion_opts = {dist, orient, az, el};
   motion_opts.push_back(app.add_option("--range-m", c.motion.range_m, "3D motion: max excursion per axis (m)")
-                            ->check(CLI::NonNegativeNumber));
+                            ->check(evpipe::cli::non_negative_number()));
   motion_opts.push_back(app.add_option("--range-deg", c.motion.range_deg, "3D motion: max rotation per axis (deg)")
-                            ->check(CLI::NonNegativeNumber));
-  motion_opts.push_back(
-      app.add_option("--max-speed-m-s", c.motion.max_speed_m_s, "3D motion: max speed")->check(CLI::NonNegativeNumber));
+                            ->check(evpipe::cli::non_negative_number()));
+  motion_opts.push_back(app.add_option("--max-speed-m-s", c.motion.max_speed_m_s, "3D motion: max speed")
+                            ->check(evpipe::cli::non_negative_number()));
   motion_opts.push_back(
       app.add_option("--max-angular-speed-deg-s", c.motion.max_angular_speed_deg_s, "3D motion: max angular speed")
-          ->check(CLI::NonNegativeNumber));
-  motion_opts.push_back(
-      app.add_option("--min-freq-hz", c.motion.min_freq_hz, "3D motion: lowest frequency")->check(CLI::PositiveNumber));
+          ->check(evpipe::cli::non_negative_number()));
+  motion_opts.push_back(app.add_option("--min-freq-hz", c.motion.min_freq_hz, "3D motion: lowest frequency")
+                            ->check(evpipe::cli::positive_number()));
   motion_opts.push_back(app.add_option("--max-freq-hz", c.motion.max_freq_hz, "3D motion: highest frequency")
-                            ->check(CLI::PositiveNumber));
+                            ->check(evpipe::cli::positive_number()));
   auto* stop = app.add_option("--stop", c.stop_text,
                               "3D motion: stand still from AT_S for FOR_S seconds, AT_S:FOR_S (repeatable or "
                               "comma-separated); the motion pauses and continues where it stopped")
@@ -706,35 +707,36 @@ int main(int argc, char** argv) {
   motion_opts.push_back(stop);
   motion_opts.push_back(app.add_option("--stop-ramp-s", c.motion.stop_ramp_s,
                                        "3D motion: slowing down before / speeding up after each stop (s)")
-                            ->check(CLI::NonNegativeNumber));
+                            ->check(evpipe::cli::non_negative_number()));
   app.add_option("--distractor", c.distractor_text,
                  "3D clutter (repeatable or comma-separated): lines, moving-lines, decoy, decoy-static, flicker "
                  "(docs/simulation.md); its events are labelled signal, the ground truth is the target's")
       ->delimiter(',');
   app.add_option("--flicker-hz", c.flicker.rate_hz, "3D clutter: flicker cycles per second")
-      ->check(CLI::PositiveNumber);
+      ->check(evpipe::cli::positive_number());
   app.add_option("--flicker-size-px", c.flicker.size_px, "3D clutter: side of the flicker patch (px)")
-      ->check(CLI::Range(1, 100));
+      ->check(evpipe::cli::range(1, 100));
   app.add_option("--gt-rate-hz", c.motion.rate_hz, "3D: ground-truth rows per second (>= 1000)");
   app.add_option("--contrast", c.edge.contrast_log, "3D edges: log-intensity step across an edge")
-      ->check(CLI::PositiveNumber);
+      ->check(evpipe::cli::positive_number());
   app.add_option("--threshold", c.edge.threshold_log, "3D edges: contrast threshold (log units)")
-      ->check(CLI::PositiveNumber);
+      ->check(evpipe::cli::positive_number());
   app.add_option("--blur-px", c.edge.blur_px, "3D edges: width of the intensity ramp (px)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(evpipe::cli::non_negative_number());
   app.add_option("--refractory-us", c.edge.refractory_us, "3D edges: per-pixel refractory period")
-      ->check(CLI::NonNegativeNumber);
+      ->check(evpipe::cli::non_negative_number());
   app.add_option("--jitter-us", c.edge.jitter_us, "3D edges: std. dev. of timestamp jitter")
-      ->check(CLI::NonNegativeNumber);
+      ->check(evpipe::cli::non_negative_number());
   app.add_option("--max-step-px", c.edge.max_step_px, "3D edges: largest segment motion per simulation step")
-      ->check(CLI::Range(0.01, 2.0));
+      ->check(evpipe::cli::range(0.01, 2.0));
   app.add_option("--prior-offset-m", c.prior_offset_m, "3D: prior = first ground-truth pose moved by this")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--prior-offset-deg", c.prior_offset_deg, "3D: ... and turned by this")->check(CLI::Range(0.0, 180.0));
+      ->check(evpipe::cli::non_negative_number());
+  app.add_option("--prior-offset-deg", c.prior_offset_deg, "3D: ... and turned by this")
+      ->check(evpipe::cli::range(0.0, 180.0));
   app.add_option("--prior-position-tolerance-m", c.prior_position_tolerance_m, "3D: prior's position_tolerance")
-      ->check(CLI::PositiveNumber);
+      ->check(evpipe::cli::positive_number());
   app.add_option("--prior-angle-tolerance-deg", c.prior_angle_tolerance_deg, "3D: prior's angle_tolerance_deg")
-      ->check(CLI::Range(0.001, 180.0));
+      ->check(evpipe::cli::range(0.001, 180.0));
   pure->excludes(scene)->excludes(model);
   scene->excludes(model);
   speed->excludes(model)->excludes(pure);
@@ -742,15 +744,10 @@ int main(int argc, char** argv) {
   for (auto* o : motion_opts) traj->excludes(o);
   orient->excludes(az)->excludes(el);
   (void)cam;
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const auto status = app.parse(argc, argv)) return *status;
   // Issue 17 row 13: CLI11 parses nan and inf as numbers and its range checks let NaN through (--noise-hz nan gave
   // no noise, exit 0). Every floating-point option must be finite; times must leave room for the recording.
-  for (const CLI::Option* o : app.get_options()) {
+  for (const auto& o : app.options()) {
     if (o->get_type_name().rfind("FLOAT", 0) != 0 || o->count() == 0) continue;  // "FLOAT" or "FLOAT:..." (checks)
     for (const auto& text : o->results()) {
       char* end = nullptr;
