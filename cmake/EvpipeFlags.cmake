@@ -61,8 +61,9 @@ endfunction()
 # once per build preset. GCC uses a precompiled header only in a source built with the same flags and the same
 # macros where the headers read them: every user gets -pthread as the header does (it defines _REENTRANT, which the
 # standard headers read), and under the sanitizers the numerical libraries, built with other flags, have a header
-# of their own. A source GCC refuses the header in is compiled as without it (it includes the same headers), only
-# slower. The fuzz build (clang, a dozen sources) goes without.
+# of their own. CMake adds -Winvalid-pch: under -Werror a source GCC refuses the header in fails to build (a new
+# per-target flag or macro the headers read, e.g. -fopenmp, needs its own header). The fuzz build (clang) goes
+# without, and so catches a missing include the header would hide.
 set(EVPIPE_PCH_HEADERS <Eigen/Core> <Eigen/Geometry> <fmt/format.h> <algorithm> <array> <chrono> <cmath> <cstdint>
                        <functional> <limits> <memory> <optional> <span> <stdexcept> <string> <string_view> <utility>
                        <vector>)

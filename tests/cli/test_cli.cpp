@@ -59,6 +59,26 @@ TEST(Cli, BindsValuesOfEveryKind) {
   EXPECT_EQ(app.options()[1]->get_type_name().rfind("FLOAT", 0), 0u);
 }
 
+TEST(Cli, OptionalValuesAndLists) {
+  App app{"test"};
+  app.always_capture_default();
+  std::optional<std::string> config;
+  std::optional<double> hz, unset;
+  std::vector<std::string> stops;
+  double png_t_ms = 0.0;
+  app.add_option("--config", config);
+  app.add_option("--hz", hz)->check(evpipe::cli::range(0.1, 30.0));
+  app.add_option("--unset", unset);
+  app.add_option("--stop", stops)->delimiter(',');
+  app.add_option("--png-t-ms", png_t_ms)->default_str("middle");
+  EXPECT_EQ(parse(app, {"--config", "a.yaml", "--hz", "12.5", "--stop", "1:2,3:4", "--stop", "5:6"}), std::nullopt);
+  EXPECT_EQ(config, "a.yaml");
+  EXPECT_EQ(hz, 12.5);
+  EXPECT_FALSE(unset.has_value());
+  EXPECT_EQ(stops, (std::vector<std::string>{"1:2", "3:4", "5:6"}));
+  EXPECT_EQ(app.options()[4]->count(), 0u);
+}
+
 TEST(Cli, UsageErrorsAreStatusTwoAndHelpIsZero) {
   const auto fresh = [](std::vector<std::string> args) {
     App app{"test"};

@@ -36,7 +36,8 @@ class Validator {
 Validator existing_file();
 Validator positive_number();
 Validator non_negative_number();
-/// CLI::Range in the value's own type: --help shows its bounds as written, and the check reads the value as that type.
+/// CLI::Range in the bounds' type (give them the option's type): --help shows them as written, and the check reads
+/// the value as that type (range(1, 8) on a double option refuses 2.5).
 Validator range(int min, int max);
 Validator range(std::int64_t min, std::int64_t max);
 Validator range(std::size_t min, std::size_t max);
