@@ -2,6 +2,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <array>
 #include <optional>
 #include <utility>
 
@@ -73,23 +74,11 @@ Option* Option::allow_extra_args(bool allow) {
   return this;
 }
 Option* Option::multi_option_policy(MultiOptionPolicy policy) {
-  switch (policy) {
-    case MultiOptionPolicy::throw_error:
-      option_->multi_option_policy(CLI::MultiOptionPolicy::Throw);
-      break;
-    case MultiOptionPolicy::take_last:
-      option_->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
-      break;
-    case MultiOptionPolicy::take_first:
-      option_->multi_option_policy(CLI::MultiOptionPolicy::TakeFirst);
-      break;
-    case MultiOptionPolicy::join:
-      option_->multi_option_policy(CLI::MultiOptionPolicy::Join);
-      break;
-    case MultiOptionPolicy::take_all:
-      option_->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-      break;
-  }
+  // In the order of MultiOptionPolicy's values.
+  static constexpr std::array kPolicies{CLI::MultiOptionPolicy::Throw, CLI::MultiOptionPolicy::TakeLast,
+                                        CLI::MultiOptionPolicy::TakeFirst, CLI::MultiOptionPolicy::Join,
+                                        CLI::MultiOptionPolicy::TakeAll};
+  option_->multi_option_policy(kPolicies.at(static_cast<std::size_t>(policy)));
   return this;
 }
 std::size_t Option::count() const {
